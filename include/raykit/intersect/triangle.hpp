@@ -1,0 +1,135 @@
+// raykit/intersect/triangle.hpp — ray/triangle tests as tag types.
+//
+// Each test is a type with
+//   struct RayData;                               // per-ray precomputation
+//   static RayData prepare(const Ray&);
+//   static bool intersect(const RayData&, p0, p1, p2, tmin, tmax, TriHit&);
+// so traversal is templated on the test and pays only for what it uses.
+//
+//  - Watertight (default): Woop, Benthin, Wald, "Watertight Ray/Triangle
+//    Intersection", JCGT 2013. Never misses through a shared edge or vertex of a
+//    closed mesh; falls back to double precision when an edge function is 0.
+//  - MollerTrumbore: the classic test (Möller & Trumbore 1997). Fast; can miss
+//    rays through shared edges/vertices (rounding of u, v against 0 and 1).
+//  - ThesisTest: the thesis's method: hit the supporting plane, then check the
+//    point against each edge with a cross product and a fixed tolerance. The
+//    tolerance is absolute, so it leaks (misses) on large triangles and admits
+//    false hits next to tiny ones; kept as an accuracy baseline.
+//
+// All three return no hit for degenerate (zero-area) triangles and for any
+// NaN/inf vertex. u, v are the barycentric weights of p1 and p2.
+#pragma once
+
+#include <cmath>
+#include <utility>
+
+#include "raykit/math/ray.hpp"
+
+namespace raykit {
+
+struct TriHit {
+    float t, u, v;
+};
+
+struct Watertight {
+    struct RayData {
+        vec3 org;
+        int kx, ky, kz;
+        float sx, sy, sz;
+    };
+    static RayData prepare(const Ray& r) noexcept {
+        RayData d;
+        d.org = r.org;
+        const vec3 ad = glm::abs(r.dir);
+        d.kz = max_axis(ad);
+        d.kx = d.kz == 2 ? 0 : d.kz + 1;
+        d.ky = d.kx == 2 ? 0 : d.kx + 1;
+        if (r.dir[d.kz] < 0.0f) std::swap(d.kx, d.ky);
+        d.sx = r.dir[d.kx] / r.dir[d.kz];
+        d.sy = r.dir[d.ky] / r.dir[d.kz];
+        d.sz = 1.0f / r.dir[d.kz];
+        return d;
+    }
+    static RAYKIT_INLINE bool intersect(const RayData& d, const vec3& p0, const vec3& p1,
+                                        const vec3& p2, float tmin, float tmax, TriHit& out) noexcept {
+        const vec3 A = p0 - d.org, B = p1 - d.org, C = p2 - d.org;
+        const float Ax = A[d.kx] - d.sx * A[d.kz], Ay = A[d.ky] - d.sy * A[d.kz];
+        const float Bx = B[d.kx] - d.sx * B[d.kz], By = B[d.ky] - d.sy * B[d.kz];
+        const float Cx = C[d.kx] - d.sx * C[d.kz], Cy = C[d.ky] - d.sy * C[d.kz];
+        float U = Cx * By - Cy * Bx;
+        float V = Ax * Cy - Ay * Cx;
+        float W = Bx * Ay - By * Ax;
+        if (U == 0.0f || V == 0.0f || W == 0.0f) {
+            U = static_cast<float>(double(Cx) * double(By) - double(Cy) * double(Bx));
+            V = static_cast<float>(double(Ax) * double(Cy) - double(Ay) * double(Cx));
+            W = static_cast<float>(double(Bx) * double(Ay) - double(By) * double(Ax));
+        }
+        if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return false;
+        const float det = U + V + W;
+        if (!(det != 0.0f)) return false;  // degenerate, or NaN
+        const float Az = d.sz * A[d.kz], Bz = d.sz * B[d.kz], Cz = d.sz * C[d.kz];
+        const float T = U * Az + V * Bz + W * Cz;
+        const float inv = 1.0f / det;
+        const float t = T * inv;
+        if (!(t >= tmin && t <= tmax)) return false;  // also rejects NaN
+        out = {t, V * inv, W * inv};
+        return true;
+    }
+};
+
+struct MollerTrumbore {
+    struct RayData {
+        vec3 org, dir;
+    };
+    static RayData prepare(const Ray& r) noexcept { return {r.org, r.dir}; }
+    static RAYKIT_INLINE bool intersect(const RayData& d, const vec3& p0, const vec3& p1,
+                                        const vec3& p2, float tmin, float tmax, TriHit& out) noexcept {
+        const vec3 e1 = p1 - p0, e2 = p2 - p0;
+        const vec3 pv = glm::cross(d.dir, e2);
+        const float det = glm::dot(e1, pv);
+        if (!(det != 0.0f)) return false;
+        const float inv = 1.0f / det;
+        const vec3 tv = d.org - p0;
+        const float u = glm::dot(tv, pv) * inv;
+        if (!(u >= 0.0f && u <= 1.0f)) return false;
+        const vec3 qv = glm::cross(tv, e1);
+        const float v = glm::dot(d.dir, qv) * inv;
+        if (!(v >= 0.0f && u + v <= 1.0f)) return false;
+        const float t = glm::dot(e2, qv) * inv;
+        if (!(t >= tmin && t <= tmax)) return false;
+        out = {t, u, v};
+        return true;
+    }
+};
+
+struct ThesisTest {
+    /// Absolute tolerance of the inside test, in the units of
+    /// dot(cross(edge, p − vertex), n) (length^4): the thesis's fixed epsilon.
+    static constexpr float kTolerance = 1e-6f;
+    struct RayData {
+        vec3 org, dir;
+    };
+    static RayData prepare(const Ray& r) noexcept { return {r.org, r.dir}; }
+    static RAYKIT_INLINE bool intersect(const RayData& d, const vec3& p0, const vec3& p1,
+                                        const vec3& p2, float tmin, float tmax, TriHit& out) noexcept {
+        const vec3 n = glm::cross(p1 - p0, p2 - p0);
+        const float nn = glm::dot(n, n);
+        const float denom = glm::dot(n, d.dir);
+        if (!(denom != 0.0f) || !(nn > 0.0f)) return false;
+        const float t = glm::dot(n, p0 - d.org) / denom;
+        if (!(t >= tmin && t <= tmax)) return false;
+        const vec3 p = d.org + t * d.dir;
+        const float c0 = glm::dot(glm::cross(p1 - p0, p - p0), n);
+        const float c1 = glm::dot(glm::cross(p2 - p1, p - p1), n);
+        const float c2 = glm::dot(glm::cross(p0 - p2, p - p2), n);
+        if (!(c0 >= -kTolerance && c1 >= -kTolerance && c2 >= -kTolerance)) return false;
+        // c1 ~ weight of p0, c2 ~ weight of p1, c0 ~ weight of p2
+        out = {t, c2 / nn, c0 / nn};
+        return true;
+    }
+};
+
+/// The default test.
+using DefaultTriangleTest = Watertight;
+
+}  // namespace raykit
