@@ -5,7 +5,9 @@
 // never allowed to decide: robust_max/robust_min keep the current interval then,
 // which counts the boundary as inside. The exit distance is widened by
 // 1 + 2·gamma(3) (Ize, "Robust BVH Ray Traversal", JCGT 2013), so a box is
-// never missed through rounding by a ray that hits a triangle inside it.
+// never missed through rounding by a ray that hits a triangle inside it; tmax
+// is widened the same way, so a box whose entry equals the current closest hit
+// (a tie) is still visited.
 #pragma once
 
 #include "raykit/math/aabb.hpp"
@@ -21,7 +23,7 @@ inline constexpr float kSlabExitScale = 1.0f + 2.0f * gamma_bound(3);
 RAYKIT_INLINE bool slab_test(const float* RAYKIT_RESTRICT lo, const float* RAYKIT_RESTRICT hi,
                              const vec3& org, const RayInv& ri, float tmin, float tmax,
                              float& tentry) noexcept {
-    float t0 = tmin, t1 = tmax;
+    float t0 = tmin, t1 = tmax * kSlabExitScale;
     for (int a = 0; a < 3; ++a) {
         const float nearp = ri.octant[a] ? hi[a] : lo[a];
         const float farp = ri.octant[a] ? lo[a] : hi[a];

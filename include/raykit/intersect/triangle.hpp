@@ -8,7 +8,7 @@
 //
 //  - Watertight (default): Woop, Benthin, Wald, "Watertight Ray/Triangle
 //    Intersection", JCGT 2013. Never misses through a shared edge or vertex of a
-//    closed mesh; falls back to double precision when an edge function is 0.
+//    closed mesh; its 2-D edge functions are evaluated in double (exact products).
 //  - MollerTrumbore: the classic test (Möller & Trumbore 1997). Fast; can miss
 //    rays through shared edges/vertices (rounding of u, v against 0 and 1).
 //  - ThesisTest: the thesis's method: hit the supporting plane, then check the
@@ -56,17 +56,18 @@ struct Watertight {
         const float Ax = A[d.kx] - d.sx * A[d.kz], Ay = A[d.ky] - d.sy * A[d.kz];
         const float Bx = B[d.kx] - d.sx * B[d.kz], By = B[d.ky] - d.sy * B[d.kz];
         const float Cx = C[d.kx] - d.sx * C[d.kz], Cy = C[d.ky] - d.sy * C[d.kz];
-        float U = Cx * By - Cy * Bx;
-        float V = Ax * Cy - Ay * Cx;
-        float W = Bx * Ay - By * Ax;
-        if (U == 0.0f || V == 0.0f || W == 0.0f) {
-            U = static_cast<float>(double(Cx) * double(By) - double(Cy) * double(Bx));
-            V = static_cast<float>(double(Ax) * double(Cy) - double(Ay) * double(Cx));
-            W = static_cast<float>(double(Bx) * double(Ay) - double(By) * double(Ax));
-        }
-        if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return false;
-        const float det = U + V + W;
-        if (!(det != 0.0f)) return false;  // degenerate, or NaN
+        // Edge functions in double: a product of two floats is exact in double,
+        // so each is rounded once, the same way in both triangles that share
+        // the edge (watertight), even when the compiler fuses multiply-adds.
+        const double Ud = double(Cx) * double(By) - double(Cy) * double(Bx);
+        const double Vd = double(Ax) * double(Cy) - double(Ay) * double(Cx);
+        const double Wd = double(Bx) * double(Ay) - double(By) * double(Ax);
+        if ((Ud < 0.0 || Vd < 0.0 || Wd < 0.0) && (Ud > 0.0 || Vd > 0.0 || Wd > 0.0)) return false;
+        const double detd = Ud + Vd + Wd;
+        if (!(detd != 0.0)) return false;  // degenerate, or NaN
+        const float U = static_cast<float>(Ud), V = static_cast<float>(Vd), W = static_cast<float>(Wd);
+        const float det = static_cast<float>(detd);
+        if (!(det != 0.0f)) return false;  // below float range: treat as degenerate
         const float Az = d.sz * A[d.kz], Bz = d.sz * B[d.kz], Cz = d.sz * C[d.kz];
         const float T = U * Az + V * Bz + W * Cz;
         const float inv = 1.0f / det;
@@ -104,8 +105,10 @@ struct MollerTrumbore {
 
 struct ThesisTest {
     /// Absolute tolerance of the inside test, in the units of
-    /// dot(cross(edge, p − vertex), n) (length^4): the thesis's fixed epsilon.
-    static constexpr float kTolerance = 1e-6f;
+    /// dot(cross(edge, p − vertex), n̂) (length², n̂ the unit normal): the
+    /// thesis's fixed epsilon. Fixed, hence scale-dependent: it admits points
+    /// just outside small triangles and is lost in rounding on large ones.
+    static constexpr float kTolerance = 1e-7f;
     struct RayData {
         vec3 org, dir;
     };
@@ -113,18 +116,19 @@ struct ThesisTest {
     static RAYKIT_INLINE bool intersect(const RayData& d, const vec3& p0, const vec3& p1,
                                         const vec3& p2, float tmin, float tmax, TriHit& out) noexcept {
         const vec3 n = glm::cross(p1 - p0, p2 - p0);
-        const float nn = glm::dot(n, n);
+        const float len = std::sqrt(glm::dot(n, n));
         const float denom = glm::dot(n, d.dir);
-        if (!(denom != 0.0f) || !(nn > 0.0f)) return false;
+        if (!(denom != 0.0f) || !(len > 0.0f)) return false;
         const float t = glm::dot(n, p0 - d.org) / denom;
         if (!(t >= tmin && t <= tmax)) return false;
         const vec3 p = d.org + t * d.dir;
-        const float c0 = glm::dot(glm::cross(p1 - p0, p - p0), n);
-        const float c1 = glm::dot(glm::cross(p2 - p1, p - p1), n);
-        const float c2 = glm::dot(glm::cross(p0 - p2, p - p2), n);
+        const vec3 nu = n / len;
+        const float c0 = glm::dot(glm::cross(p1 - p0, p - p0), nu);
+        const float c1 = glm::dot(glm::cross(p2 - p1, p - p1), nu);
+        const float c2 = glm::dot(glm::cross(p0 - p2, p - p2), nu);
         if (!(c0 >= -kTolerance && c1 >= -kTolerance && c2 >= -kTolerance)) return false;
-        // c1 ~ weight of p0, c2 ~ weight of p1, c0 ~ weight of p2
-        out = {t, c2 / nn, c0 / nn};
+        // c1 ~ weight of p0, c2 ~ weight of p1, c0 ~ weight of p2 (each times |n|)
+        out = {t, c2 / len, c0 / len};
         return true;
     }
 };

@@ -1,0 +1,352 @@
+// raykit — command line front end of the raykit library.
+//
+//   raykit info SCENE.obj [--builder sah] [--leaf N] [--threads T] [--json]
+//   raykit trace SCENE.obj RAYS.txt HITS.txt [--any-hit] [--test watertight|mt|thesis] [...]
+//   raykit check SCENE.obj [--rays N] [--seed S] [...]
+//   raykit generate torus|icosphere|soup OUT.obj [--tris N] [--seed S]
+//
+// Every error ends with a one-line reason on stderr and a non-zero exit:
+// 2 for bad usage, 1 for anything else.
+#include <charconv>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <random>
+#include <sstream>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "raykit.hpp"
+#include "raykit/io/obj.hpp"
+#include "raykit/io/obj_write.hpp"
+#include "raykit/scene/generate.hpp"
+
+namespace {
+
+using namespace raykit;
+using Clock = std::chrono::steady_clock;
+
+struct UsageError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+constexpr const char* kUsage = R"(usage:
+  raykit info SCENE.obj [--builder NAME] [--leaf N] [--threads T] [--json]
+  raykit trace SCENE.obj RAYS.txt HITS.txt [--builder NAME] [--any-hit] [--test watertight|mt|thesis] [--threads T]
+  raykit check SCENE.obj [--rays N] [--seed S] [--builder NAME] [--test watertight|mt|thesis] [--threads T]
+  raykit generate torus|icosphere|soup OUT.obj [--tris N] [--seed S]
+
+  --builder NAME   BVH builder: sah (binned SAH, default)
+  --leaf N         largest leaf (primitives), default 8
+  --threads T      worker threads, 0 = all (default)
+  --test NAME      ray/triangle test: watertight (default), mt (Moller-Trumbore), thesis
+RAYS.txt: one ray per line, "ox oy oz dx dy dz tmin tmax" (tmax may be inf).
+HITS.txt: one line per ray, "prim t u v" ("-1 0 0 0" on a miss); with --any-hit "1" or "0".
+)";
+
+/// Parsed "--flag value" options plus positional arguments.
+struct Args {
+    std::vector<std::string> pos;
+    std::map<std::string, std::string> opt;
+    std::vector<std::string> flags;
+
+    Args(int argc, char** argv, int first, const std::vector<std::string>& valued,
+         const std::vector<std::string>& boolean) {
+        for (int i = first; i < argc; ++i) {
+            std::string a = argv[i];
+            if (a.rfind("--", 0) == 0) {
+                if (std::find(valued.begin(), valued.end(), a) != valued.end()) {
+                    if (i + 1 >= argc) throw UsageError(a + " needs a value");
+                    opt[a] = argv[++i];
+                } else if (std::find(boolean.begin(), boolean.end(), a) != boolean.end()) {
+                    flags.push_back(a);
+                } else {
+                    throw UsageError("unknown option " + a);
+                }
+            } else {
+                pos.push_back(std::move(a));
+            }
+        }
+    }
+    bool has(const std::string& f) const { return std::find(flags.begin(), flags.end(), f) != flags.end(); }
+    std::string get(const std::string& k, const std::string& def) const {
+        auto it = opt.find(k);
+        return it == opt.end() ? def : it->second;
+    }
+    template <class T>
+    T number(const std::string& k, T def) const {
+        auto it = opt.find(k);
+        if (it == opt.end()) return def;
+        T v{};
+        const char* b = it->second.data();
+        const char* e = b + it->second.size();
+        auto [p, ec] = std::from_chars(b, e, v);
+        if (ec != std::errc() || p != e) throw UsageError(k + " expects a number, got '" + it->second + "'");
+        return v;
+    }
+};
+
+struct TreeOptions {
+    std::string builder = "sah";
+    unsigned leaf = 8;
+    unsigned threads = 0;
+};
+
+TreeOptions tree_options(const Args& a) {
+    TreeOptions t;
+    t.builder = a.get("--builder", "sah");
+    t.leaf = a.number<unsigned>("--leaf", 8);
+    t.threads = a.number<unsigned>("--threads", 0);
+    if (t.builder != "sah") throw UsageError("unknown builder '" + t.builder + "' (known: sah)");
+    if (t.leaf < 1) throw UsageError("--leaf must be at least 1");
+    return t;
+}
+
+Bvh build_tree(const Mesh& mesh, const TreeOptions& t) {
+    BinnedSahBuilder::Config c;
+    c.max_leaf_size = t.leaf;
+    c.threads = t.threads;
+    return build_bvh<BinnedSahBuilder>(mesh, c);
+}
+
+Mesh load_scene(const std::string& path) {
+    Mesh m = load_obj(path);
+    for (const std::string& w : m.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
+    return m;
+}
+
+int cmd_info(int argc, char** argv) {
+    Args a(argc, argv, 2, {"--builder", "--leaf", "--threads"}, {"--json"});
+    if (a.pos.size() != 1) throw UsageError("info takes one SCENE.obj");
+    const TreeOptions t = tree_options(a);
+    const Mesh mesh = load_scene(a.pos[0]);
+    const auto t0 = Clock::now();
+    const Bvh bvh = build_tree(mesh, t);
+    const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    const double cost = sah_cost(bvh);
+    if (a.has("--json")) {
+        std::printf(
+            "{\"file\": \"%s\", \"triangles\": %zu, \"vertices\": %zu, \"materials\": %zu, \"builder\": \"%s\", "
+            "\"max_leaf_size\": %u, \"nodes\": %zu, \"leaves\": %zu, \"depth\": %d, \"sah_cost\": %.6f, "
+            "\"build_ms\": %.3f, \"memory_bytes\": %zu}\n",
+            a.pos[0].c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(), t.builder.c_str(),
+            t.leaf, bvh.nodes.size(), bvh.leaf_count(), bvh.depth(), cost, ms, bvh.memory_bytes());
+    } else {
+        std::printf("file        %s\ntriangles   %zu\nvertices    %zu\nmaterials   %zu\nbuilder     %s (max leaf %u)\n"
+                    "nodes       %zu\nleaves      %zu\ndepth       %d\nSAH cost    %.4f\nbuild       %.2f ms\n"
+                    "memory      %zu bytes\n",
+                    a.pos[0].c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(),
+                    t.builder.c_str(), t.leaf, bvh.nodes.size(), bvh.leaf_count(), bvh.depth(), cost, ms,
+                    bvh.memory_bytes());
+    }
+    return 0;
+}
+
+enum class TestKind { watertight, mt, thesis };
+
+TestKind test_kind(const Args& a) {
+    const std::string s = a.get("--test", "watertight");
+    if (s == "watertight") return TestKind::watertight;
+    if (s == "mt") return TestKind::mt;
+    if (s == "thesis") return TestKind::thesis;
+    throw UsageError("unknown --test '" + s + "' (known: watertight, mt, thesis)");
+}
+
+template <class F>
+decltype(auto) with_test(TestKind k, F&& f) {
+    switch (k) {
+        case TestKind::mt: return f(MollerTrumbore{});
+        case TestKind::thesis: return f(ThesisTest{});
+        default: return f(Watertight{});
+    }
+}
+
+/// Parses one number field of a RAYS line; `allow_inf` for tmax.
+float ray_field(std::string_view tok, const std::string& file, std::size_t line, bool allow_inf) {
+    if (!tok.empty() && tok[0] == '+') tok.remove_prefix(1);
+    float v = 0.0f;
+    auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
+    if (ec != std::errc() || p != tok.data() + tok.size())
+        throw ParseError(file, line, "not a number: '" + std::string(tok) + "'");
+    if (std::isnan(v)) throw ParseError(file, line, "NaN in ray");
+    if (std::isinf(v) && !allow_inf) throw ParseError(file, line, "infinite value where only tmax may be inf");
+    return v;
+}
+
+std::vector<Ray> read_rays(const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw ParseError(file, 0, "cannot open rays file");
+    std::vector<Ray> rays;
+    std::string s;
+    std::size_t line = 0;
+    while (std::getline(in, s)) {
+        ++line;
+        if (!s.empty() && s.back() == '\r') s.pop_back();
+        std::vector<std::string_view> tok;
+        std::string_view v(s);
+        std::size_t i = 0;
+        while (i < v.size()) {
+            while (i < v.size() && (v[i] == ' ' || v[i] == '\t')) ++i;
+            std::size_t j = i;
+            while (j < v.size() && v[j] != ' ' && v[j] != '\t') ++j;
+            if (j > i) tok.push_back(v.substr(i, j - i));
+            i = j;
+        }
+        if (tok.empty() || tok[0][0] == '#') continue;
+        if (tok.size() != 8)
+            throw ParseError(file, line, "expected 8 fields (ox oy oz dx dy dz tmin tmax), got " + std::to_string(tok.size()));
+        Ray r;
+        for (int k = 0; k < 3; ++k) r.org[k] = ray_field(tok[k], file, line, false);
+        for (int k = 0; k < 3; ++k) r.dir[k] = ray_field(tok[3 + k], file, line, false);
+        r.tmin = ray_field(tok[6], file, line, false);
+        r.tmax = ray_field(tok[7], file, line, true);
+        rays.push_back(r);
+    }
+    return rays;
+}
+
+int cmd_trace(int argc, char** argv) {
+    Args a(argc, argv, 2, {"--builder", "--leaf", "--threads", "--test"}, {"--any-hit"});
+    if (a.pos.size() != 3) throw UsageError("trace takes SCENE.obj RAYS.txt HITS.txt");
+    const TreeOptions t = tree_options(a);
+    const TestKind tk = test_kind(a);
+    const Mesh mesh = load_scene(a.pos[0]);
+    const std::vector<Ray> rays = read_rays(a.pos[1]);
+    const Bvh bvh = build_tree(mesh, t);
+    std::ofstream out(a.pos[2], std::ios::binary);
+    if (!out) throw std::runtime_error("cannot write " + a.pos[2]);
+    const bool any = a.has("--any-hit");
+    std::vector<Hit> hits(rays.size());
+    std::vector<std::uint8_t> occl(rays.size());
+    with_test(tk, [&](auto test) {
+        using T = decltype(test);
+        parallel_for(rays.size(), t.threads, [&](std::size_t i) {
+            if (any) occl[i] = intersect_any<T>(mesh, bvh, rays[i]);
+            else hits[i] = intersect_closest<T>(mesh, bvh, rays[i]);
+        });
+        return 0;
+    });
+    std::string buf;
+    buf.reserve(rays.size() * 40);
+    char line[128];
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        if (any) {
+            buf += occl[i] ? "1\n" : "0\n";
+        } else if (hits[i].valid()) {
+            std::snprintf(line, sizeof line, "%u %.9g %.9g %.9g\n", hits[i].prim, hits[i].t, hits[i].u, hits[i].v);
+            buf += line;
+        } else {
+            buf += "-1 0 0 0\n";
+        }
+    }
+    out << buf;
+    if (!out) throw std::runtime_error("error writing " + a.pos[2]);
+    return 0;
+}
+
+int cmd_check(int argc, char** argv) {
+    Args a(argc, argv, 2, {"--builder", "--leaf", "--threads", "--test", "--rays", "--seed"}, {});
+    if (a.pos.size() != 1) throw UsageError("check takes one SCENE.obj");
+    const TreeOptions t = tree_options(a);
+    const TestKind tk = test_kind(a);
+    const auto n = a.number<std::size_t>("--rays", 2000);
+    const auto seed = a.number<std::uint64_t>("--seed", 1);
+    const Mesh mesh = load_scene(a.pos[0]);
+    const Bvh bvh = build_tree(mesh, t);
+    const PrimitiveRefs refs = primitive_refs(mesh);
+    if (std::string err = validate(bvh, refs.boxes); !err.empty()) throw std::runtime_error("invalid BVH: " + err);
+    AABB box;
+    for (const AABB& b : refs.boxes) box.grow(b);
+    if (box.is_empty()) box = AABB{vec3(-1.0f), vec3(1.0f)};
+    const vec3 c = box.center(), e = box.extent() + vec3(1e-3f);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+    std::vector<Ray> rays(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        Ray& r = rays[i];
+        r.org = c + vec3(U(rng), U(rng), U(rng)) * e;
+        if (i % 2 == 1 && mesh.triangle_count() > 0) {
+            // aim at a vertex or an edge midpoint of a random triangle
+            std::uniform_int_distribution<std::size_t> P(0, mesh.triangle_count() - 1);
+            const std::size_t p = P(rng);
+            const vec3 a0 = mesh.positions[mesh.triangles[p].v[0]], a1 = mesh.positions[mesh.triangles[p].v[1]];
+            r.dir = (i % 4 == 1 ? a0 : (a0 + a1) * 0.5f) - r.org;
+        } else {
+            r.dir = vec3(U(rng), U(rng), U(rng));
+        }
+        if (r.dir == vec3(0.0f)) r.dir = vec3(0.0f, 0.0f, 1.0f);
+    }
+    std::vector<std::uint8_t> bad(n);
+    with_test(tk, [&](auto test) {
+        using T = decltype(test);
+        parallel_for(n, t.threads, [&](std::size_t i) {
+            const Hit h = intersect_closest<T>(mesh, bvh, rays[i]);
+            const Hit o = brute_force_closest<T>(mesh, rays[i]);
+            const bool any = intersect_any<T>(mesh, bvh, rays[i]);
+            bad[i] = h.prim != o.prim || h.t != o.t || any != o.valid();
+        });
+        return 0;
+    });
+    std::size_t disagree = 0;
+    for (auto b : bad) disagree += b;
+    std::printf("%zu rays, %zu disagreements with brute force (%zu triangles)\n", n, disagree, mesh.triangle_count());
+    return disagree == 0 ? 0 : 1;
+}
+
+int cmd_generate(int argc, char** argv) {
+    Args a(argc, argv, 2, {"--tris", "--seed"}, {});
+    if (a.pos.size() != 2) throw UsageError("generate takes KIND OUT.obj");
+    const auto tris = a.number<std::size_t>("--tris", 100000);
+    const auto seed = a.number<std::uint64_t>("--seed", 1);
+    Mesh m;
+    if (a.pos[0] == "torus") {
+        m = make_bumpy_torus(tris);
+    } else if (a.pos[0] == "icosphere") {
+        int levels = 0;
+        while (20ull << (2 * (levels + 1))) {
+            if ((20ull << (2 * (levels + 1))) > tris) break;
+            ++levels;
+        }
+        m = make_icosphere(levels);
+    } else if (a.pos[0] == "soup") {
+        m = make_random_soup(tris, seed);
+    } else {
+        throw UsageError("unknown mesh kind '" + a.pos[0] + "' (known: torus, icosphere, soup)");
+    }
+    save_obj(m, a.pos[1]);
+    std::printf("wrote %s: %zu triangles, %zu vertices\n", a.pos[1].c_str(), m.triangle_count(), m.vertex_count());
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    if (argc < 2) {
+        std::fputs(kUsage, stderr);
+        std::fputs("raykit: error: no command given\n", stderr);
+        return 2;
+    }
+    const std::string cmd = argv[1];
+    try {
+        if (cmd == "info") return cmd_info(argc, argv);
+        if (cmd == "trace") return cmd_trace(argc, argv);
+        if (cmd == "check") return cmd_check(argc, argv);
+        if (cmd == "generate") return cmd_generate(argc, argv);
+        if (cmd == "--help" || cmd == "-h" || cmd == "help") {
+            std::fputs(kUsage, stdout);
+            return 0;
+        }
+        throw UsageError("unknown command '" + cmd + "'");
+    } catch (const UsageError& e) {
+        std::fputs(kUsage, stderr);
+        std::fprintf(stderr, "raykit: error: %s\n", e.what());
+        return 2;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "raykit: error: %s\n", e.what());
+        return 1;
+    }
+}

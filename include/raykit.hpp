@@ -1,0 +1,34 @@
+// raykit.hpp — everything on the CPU side of raykit.
+//
+// Layers (each includes only the ones above it in this list):
+//   util/, math/     vectors, AABB, ray, hit, float utilities, fork/join
+//   intersect/       slab test, triangle tests (Watertight default, MollerTrumbore, ThesisTest)
+//   bvh/             node layout, builders, SAH cost, validate, traverse, refit
+//   scene/           mesh, building a BVH over a mesh, closest/any-hit queries
+//   io/              OBJ/MTL loading, ParseError
+// The OpenCL device path is separate: include raykit/cl.hpp.
+#pragma once
+
+#include "raykit/config.hpp"
+#include "raykit/util/parallel.hpp"
+#include "raykit/math/types.hpp"
+#include "raykit/math/aabb.hpp"
+#include "raykit/math/ray.hpp"
+#include "raykit/math/hit.hpp"
+#include "raykit/math/offset.hpp"
+#include "raykit/intersect/slab.hpp"
+#include "raykit/intersect/triangle.hpp"
+#include "raykit/bvh/node.hpp"
+#include "raykit/bvh/depth.hpp"
+#include "raykit/bvh/sah.hpp"
+#include "raykit/bvh/validate.hpp"
+#include "raykit/bvh/binned_sah.hpp"
+#include "raykit/bvh/refit.hpp"
+#include "raykit/bvh/traverse.hpp"
+#include "raykit/scene/mesh.hpp"
+#include "raykit/scene/build.hpp"
+#include "raykit/scene/trace.hpp"
+#include "raykit/io/parse_error.hpp"
+#if __has_include("raykit/io/obj.hpp")
+#include "raykit/io/obj.hpp"
+#endif

@@ -1,0 +1,256 @@
+// raykit/bvh/binned_sah.hpp — top-down binned SAH builder (the quality reference).
+//
+//   Bvh bvh = BinnedSahBuilder::build(prim_boxes, prim_centers, {.max_leaf_size = 4});
+//
+// Each node bins primitive centroids into `bins` buckets on all three axes,
+// sweeps the buckets for the split of least SAH cost
+//   Ct·SA(node) + Ci·(SA(L)·|L| + SA(R)·|R|)
+// and makes a leaf instead when that is cheaper than Ci·SA(node)·|node| and the
+// node holds at most `max_leaf_size` primitives. Coincident centroids fall back
+// to a split by index; below kMedianDepth (bvh/depth.hpp) splits are medians.
+//
+// Parallel: the two subtrees of large nodes build on separate threads
+// (fork/join, down to a depth of log2(threads)+2), and the binning and bounds
+// passes of nodes over 64k primitives run in chunks on all threads. The tree is
+// the same for every thread count: splits depend only on the primitive set,
+// and the final layout is a depth-first pre-order pass.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <span>
+#include <stdexcept>
+#include <vector>
+
+#include "raykit/bvh/depth.hpp"
+#include "raykit/bvh/node.hpp"
+#include "raykit/util/parallel.hpp"
+
+namespace raykit {
+
+struct BinnedSahBuilder {
+    struct Config {
+        unsigned bins = 32;                     ///< buckets per axis (2..256)
+        unsigned min_leaf_size = 1;             ///< nodes this small always become leaves
+        unsigned max_leaf_size = 8;             ///< nodes larger than this are always split
+        float traversal_cost = 1.0f;            ///< Ct, cost of visiting an inner node
+        float intersection_cost = 1.0f;         ///< Ci, cost of one ray/triangle test
+        unsigned threads = 0;                   ///< 0 = all hardware threads
+        std::size_t parallel_threshold = 4096;  ///< subtrees smaller than this stay on one thread
+    };
+
+    static Bvh build(std::span<const AABB> boxes, std::span<const vec3> centers) {
+        return build(boxes, centers, Config{});
+    }
+    static Bvh build(std::span<const AABB> boxes, std::span<const vec3> centers, const Config& cfg) {
+        if (boxes.size() != centers.size())
+            throw std::invalid_argument("BinnedSahBuilder: boxes and centers differ in size");
+        if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("BinnedSahBuilder: too many primitives");
+        if (cfg.bins < 2 || cfg.bins > 256) throw std::invalid_argument("BinnedSahBuilder: bins must be in [2, 256]");
+        Bvh bvh;
+        const auto n = static_cast<std::uint32_t>(boxes.size());
+        if (n == 0) return bvh;
+        Impl impl{boxes, {}, {}, {}, cfg, resolve_threads(cfg.threads), 0};
+        impl.centers = sanitize_centers(centers, boxes);
+        impl.ids.resize(n);
+        for (std::uint32_t i = 0; i < n; ++i) impl.ids[i] = i;
+        impl.tmp.resize(2 * std::size_t(n) - 1);
+        int fd = 1;
+        while ((1u << (fd - 1)) < impl.threads) ++fd;
+        impl.fork_depth = impl.threads > 1 ? fd + 1 : 0;
+        impl.node(0, 1, 0, n, 0);
+        bvh.nodes = detail::compact_preorder(impl.tmp);
+        bvh.prim_ids = std::move(impl.ids);
+        return bvh;
+    }
+
+private:
+    /// Non-finite centroids (from NaN triangles) go to the centre of the
+    /// finite ones: they still need a place in the tree, and binning must
+    /// never see a NaN.
+    static std::vector<vec3> sanitize_centers(std::span<const vec3> centers, std::span<const AABB> boxes) {
+        std::vector<vec3> c(centers.begin(), centers.end());
+        AABB all;
+        bool bad = false;
+        for (const vec3& p : c) {
+            if (is_finite(p)) all.grow(p);
+            else bad = true;
+        }
+        (void)boxes;
+        if (bad) {
+            const vec3 fill = all.is_empty() ? vec3(0.0f) : all.center();
+            for (vec3& p : c)
+                if (!is_finite(p)) p = fill;
+        }
+        return c;
+    }
+
+    struct Bin {
+        AABB box;
+        std::uint32_t count = 0;
+    };
+
+    struct Impl {
+        std::span<const AABB> boxes;
+        std::vector<vec3> centers;
+        std::vector<std::uint32_t> ids;
+        std::vector<Node> tmp;
+        Config cfg;
+        unsigned threads;
+        int fork_depth;
+
+        static constexpr std::size_t kParallelPass = 65536;
+
+        void bounds(std::uint32_t b, std::uint32_t e, AABB& box, AABB& cbox) const {
+            auto pass = [&](std::size_t lo, std::size_t hi, AABB& bx, AABB& cb) {
+                for (std::size_t i = lo; i < hi; ++i) {
+                    bx.grow(boxes[ids[i]]);
+                    cb.grow(centers[ids[i]]);
+                }
+            };
+            const std::size_t n = e - b;
+            if (n < kParallelPass || threads == 1) {
+                pass(b, e, box, cbox);
+                return;
+            }
+            constexpr std::size_t kChunks = 16;
+            std::array<AABB, kChunks> bx{}, cb{};
+            parallel_chunks(n, kChunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+                pass(b + lo, b + hi, bx[c], cb[c]);
+            });
+            for (std::size_t c = 0; c < kChunks; ++c) {
+                box.grow(bx[c]);
+                cbox.grow(cb[c]);
+            }
+        }
+
+        struct Binner {
+            vec3 lo, scale;
+            int nb;
+            int index(const vec3& c, int a) const {
+                const float f = (c[a] - lo[a]) * scale[a];
+                int k = f > 0.0f ? static_cast<int>(f) : 0;
+                return k < nb ? k : nb - 1;
+            }
+        };
+
+        void bin(std::uint32_t b, std::uint32_t e, const Binner& bn, std::vector<Bin>& out) const {
+            const int nb = bn.nb;
+            auto pass = [&](std::size_t lo, std::size_t hi, Bin* dst) {
+                for (std::size_t i = lo; i < hi; ++i) {
+                    const std::uint32_t id = ids[i];
+                    const vec3& c = centers[id];
+                    for (int a = 0; a < 3; ++a) {
+                        Bin& bb = dst[a * nb + bn.index(c, a)];
+                        bb.box.grow(boxes[id]);
+                        ++bb.count;
+                    }
+                }
+            };
+            out.assign(3 * nb, Bin{});
+            const std::size_t n = e - b;
+            if (n < kParallelPass || threads == 1) {
+                pass(b, e, out.data());
+                return;
+            }
+            constexpr std::size_t kChunks = 16;
+            std::vector<Bin> part(kChunks * 3 * nb);
+            parallel_chunks(n, kChunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+                pass(b + lo, b + hi, part.data() + c * 3 * nb);
+            });
+            for (std::size_t c = 0; c < kChunks; ++c)
+                for (int k = 0; k < 3 * nb; ++k) {
+                    out[k].box.grow(part[c * 3 * nb + k].box);
+                    out[k].count += part[c * 3 * nb + k].count;
+                }
+        }
+
+        void make_leaf(std::uint32_t node, std::uint32_t b, std::uint32_t e, const AABB& box) {
+            Node& nd = tmp[node];
+            nd.box = box;
+            nd.index = b;
+            nd.count = e - b;
+        }
+
+        void node(std::uint32_t node, std::uint32_t desc, std::uint32_t b, std::uint32_t e, int depth) {
+            const std::uint32_t n = e - b;
+            AABB box, cbox;
+            bounds(b, e, box, cbox);
+            if (n <= std::max(1u, cfg.min_leaf_size)) return make_leaf(node, b, e, box);
+
+            std::uint32_t mid = 0;
+            const vec3 ext = cbox.extent();
+            const int widest = max_axis(ext);
+            if (depth >= kMedianDepth) {
+                mid = detail::median_partition(ids, b, e, centers, widest);
+            } else if (!(ext[widest] > 0.0f)) {
+                // all centroids coincide: nothing to bin
+                if (n <= cfg.max_leaf_size) return make_leaf(node, b, e, box);
+                mid = detail::median_partition(ids, b, e, centers, 0);
+            } else {
+                const int nb = static_cast<int>(cfg.bins);
+                Binner bn{cbox.min, vec3(0.0f), nb};
+                for (int a = 0; a < 3; ++a)
+                    bn.scale[a] = ext[a] > 0.0f ? static_cast<float>(nb) * (1.0f - 1e-6f) / ext[a] : 0.0f;
+                std::vector<Bin> bins;
+                bin(b, e, bn, bins);
+                float best = kInf;
+                int best_axis = -1, best_split = 0;
+                std::vector<float> rarea(nb);
+                std::vector<std::uint32_t> rcount(nb);
+                for (int a = 0; a < 3; ++a) {
+                    if (!(ext[a] > 0.0f)) continue;
+                    const Bin* ab = bins.data() + a * nb;
+                    AABB acc;
+                    std::uint32_t cnt = 0;
+                    for (int k = nb - 1; k > 0; --k) {
+                        acc.grow(ab[k].box);
+                        cnt += ab[k].count;
+                        rarea[k] = acc.half_area();
+                        rcount[k] = cnt;
+                    }
+                    acc = AABB{};
+                    cnt = 0;
+                    for (int k = 1; k < nb; ++k) {
+                        acc.grow(ab[k - 1].box);
+                        cnt += ab[k - 1].count;
+                        if (cnt == 0 || rcount[k] == 0) continue;
+                        const float c = acc.half_area() * float(cnt) + rarea[k] * float(rcount[k]);
+                        if (c < best) {
+                            best = c;
+                            best_axis = a;
+                            best_split = k;
+                        }
+                    }
+                }
+                const float sa = box.half_area();
+                const float split_cost = cfg.traversal_cost * sa + cfg.intersection_cost * best;
+                const float leaf_cost = cfg.intersection_cost * sa * float(n);
+                if (n <= cfg.max_leaf_size && (best_axis < 0 || leaf_cost <= split_cost))
+                    return make_leaf(node, b, e, box);
+                if (best_axis < 0) {
+                    mid = detail::median_partition(ids, b, e, centers, widest);
+                } else {
+                    auto it = std::partition(ids.begin() + b, ids.begin() + e, [&](std::uint32_t id) {
+                        return bn.index(centers[id], best_axis) < best_split;
+                    });
+                    mid = static_cast<std::uint32_t>(it - ids.begin());
+                    if (mid == b || mid == e) mid = detail::median_partition(ids, b, e, centers, widest);
+                }
+            }
+            Node& nd = tmp[node];
+            nd.box = box;
+            nd.index = desc;
+            nd.count = 0;
+            const std::uint32_t nl = mid - b;
+            const std::uint32_t left_desc = desc + 2, right_desc = desc + 2 + (2 * nl - 2);
+            fork_join(
+                depth < fork_depth && n >= cfg.parallel_threshold,
+                [&] { this->node(desc, left_desc, b, mid, depth + 1); },
+                [&] { this->node(desc + 1, right_desc, mid, e, depth + 1); });
+        }
+    };
+};
+
+}  // namespace raykit

@@ -1,0 +1,107 @@
+// raykit/bvh/traverse.hpp — ordered single-ray traversal.
+//
+// traverse<AnyHit>(bvh, ray, leaf) walks the tree front to back: at an inner
+// node both children are slab-tested, the nearer is visited first and the
+// farther pushed with its entry distance; a popped node whose entry distance
+// is beyond the current ray.tmax is skipped. The stack holds at most one entry
+// per level, and every raykit builder bounds the depth by RAYKIT_BVH_MAX_DEPTH
+// (bvh/depth.hpp), so the fixed stack below cannot overflow for their trees.
+// A tree from elsewhere that is deeper makes traverse throw instead of
+// writing past the stack (validate() reports it beforehand).
+//
+// The leaf callable is `bool leaf(std::uint32_t first_slot, std::uint32_t count,
+// float& tmax)`: it intersects prim_ids[first_slot .. +count), shrinks tmax on
+// closest hits, and returns true when it found a hit; with AnyHit = true the
+// walk stops at the first leaf that returns true.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <stdexcept>
+#include <type_traits>
+
+#include "raykit/bvh/node.hpp"
+#include "raykit/intersect/slab.hpp"
+
+namespace raykit {
+
+struct ClosestHit {
+    static constexpr bool any_hit = false;
+};
+struct AnyHit {
+    static constexpr bool any_hit = true;
+};
+
+/// Traversal statistics (optional, see traverse_counted).
+struct TraversalStats {
+    std::uint32_t nodes = 0;   ///< inner nodes visited
+    std::uint32_t leaves = 0;  ///< leaves visited
+};
+
+template <class Mode = ClosestHit, class LeafFn, class Stats = std::nullptr_t>
+bool traverse(const Bvh& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
+    if (bvh.nodes.empty()) return false;
+    const Node* RAYKIT_RESTRICT nodes = bvh.nodes.data();
+    const RayInv ri(ray.dir);
+    float t_root;
+    if (!slab_test(&nodes[0].box.min.x, &nodes[0].box.max.x, ray.org, ri, ray.tmin, tmax, t_root))
+        return false;
+
+    struct Entry {
+        std::uint32_t node;
+        float t;
+    };
+    Entry stack[RAYKIT_BVH_MAX_DEPTH];
+    int sp = 0;
+    std::uint32_t cur = 0;
+    bool found = false;
+    for (;;) {
+        const Node& n = nodes[cur];
+        if (n.is_leaf()) {
+            if constexpr (!std::is_same_v<Stats, std::nullptr_t>) ++stats->leaves;
+            if (leaf(n.index, n.count, tmax)) {
+                found = true;
+                if constexpr (Mode::any_hit) return true;
+            }
+        } else {
+            if constexpr (!std::is_same_v<Stats, std::nullptr_t>) ++stats->nodes;
+            const Node& l = nodes[n.index];
+            const Node& r = nodes[n.index + 1];
+            float tl, tr;
+            const bool hl = slab_test(&l.box.min.x, &l.box.max.x, ray.org, ri, ray.tmin, tmax, tl);
+            const bool hr = slab_test(&r.box.min.x, &r.box.max.x, ray.org, ri, ray.tmin, tmax, tr);
+            if (hl && hr) {
+                std::uint32_t nearc = n.index, farc = n.index + 1;
+                float tf = tr;
+                if (tr < tl) {
+                    nearc = n.index + 1;
+                    farc = n.index;
+                    tf = tl;
+                }
+                if (sp == RAYKIT_BVH_MAX_DEPTH) throw std::length_error("raykit::traverse: tree deeper than RAYKIT_BVH_MAX_DEPTH");
+                stack[sp++] = {farc, tf};
+                cur = nearc;
+                continue;
+            }
+            if (hl) {
+                cur = n.index;
+                continue;
+            }
+            if (hr) {
+                cur = n.index + 1;
+                continue;
+            }
+        }
+        // pop the next node still in front of the closest hit
+        for (;;) {
+            if (sp == 0) return found;
+            const Entry e = stack[--sp];
+            if (e.t <= tmax * kSlabExitScale) {
+                cur = e.node;
+                break;
+            }
+        }
+    }
+}
+
+}  // namespace raykit

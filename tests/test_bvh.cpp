@@ -1,0 +1,302 @@
+// BVH builder and traversal against brute force over all triangles.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "raykit.hpp"
+#include "raykit/scene/generate.hpp"
+
+using namespace raykit;
+
+namespace {
+
+/// Random rays: origins in the box grown by 50 %, directions uniform; half of
+/// them aimed at a triangle vertex or edge midpoint (the hard cases).
+std::vector<Ray> random_rays(const Mesh& m, std::size_t n, std::uint64_t seed) {
+    AABB box;
+    for (const vec3& p : m.positions)
+        if (is_finite(p)) box.grow(p);
+    if (box.is_empty()) box = {vec3(-1), vec3(1)};
+    const vec3 c = box.center(), e = box.extent() * 0.75f + vec3(1e-3f);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+    std::vector<Ray> rays(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        Ray& r = rays[i];
+        r.org = c + vec3(U(rng), U(rng), U(rng)) * e;
+        if (i % 2 && !m.triangles.empty()) {
+            const Triangle& t = m.triangles[rng() % m.triangles.size()];
+            const vec3 a = m.positions[t.v[0]], b = m.positions[t.v[1]];
+            r.dir = (i % 4 == 1 ? a : (a + b) * 0.5f) - r.org;
+        } else {
+            r.dir = vec3(U(rng), U(rng), U(rng));
+        }
+    }
+    return rays;
+}
+
+/// Asserts closest and any-hit queries equal brute force on every ray
+/// (`assert_all` false: only counts and returns the disagreements).
+template <class Test = Watertight>
+std::size_t expect_matches_brute_force(const Mesh& m, const Bvh& bvh, const std::vector<Ray>& rays,
+                                       bool assert_all = true) {
+    std::size_t bad = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        const Hit h = intersect_closest<Test>(m, bvh, rays[i]);
+        const Hit o = brute_force_closest<Test>(m, rays[i]);
+        const bool any = intersect_any<Test>(m, bvh, rays[i]);
+        if (h.prim != o.prim || h.t != o.t || any != o.valid()) {
+            if (++bad <= 5 && assert_all)
+                ADD_FAILURE() << "ray " << i << " org (" << rays[i].org.x << ", " << rays[i].org.y << ", "
+                              << rays[i].org.z << ") dir (" << rays[i].dir.x << ", " << rays[i].dir.y << ", "
+                              << rays[i].dir.z << "): bvh prim " << h.prim << " t " << h.t << " any " << any
+                              << ", brute force prim " << o.prim << " t " << o.t;
+        }
+    }
+    if (assert_all) {
+        EXPECT_EQ(bad, 0u) << "of " << rays.size() << " rays";
+    }
+    return bad;
+}
+
+Bvh build(const Mesh& m, unsigned leaf = 8, unsigned threads = 0) {
+    BinnedSahBuilder::Config c;
+    c.max_leaf_size = leaf;
+    c.threads = threads;
+    return build_bvh<BinnedSahBuilder>(m, c);
+}
+
+void expect_valid(const Mesh& m, const Bvh& bvh) {
+    const std::string err = validate(bvh, primitive_refs(m).boxes);
+    EXPECT_EQ(err, "") << "over " << m.triangle_count() << " triangles";
+}
+
+}  // namespace
+
+TEST(Bvh, EmptyAndTinyMeshes) {
+    Mesh empty;
+    const Bvh e = build(empty);
+    EXPECT_TRUE(e.nodes.empty());
+    EXPECT_FALSE(intersect_closest(empty, e, Ray{}).valid());
+    EXPECT_FALSE(intersect_any(empty, e, Ray{}));
+    for (std::size_t n : {1u, 2u, 3u, 17u}) {
+        const Mesh m = make_random_soup(n, 5 + n, 0.3f);
+        for (unsigned leaf : {1u, 4u}) {
+            const Bvh bvh = build(m, leaf);
+            expect_valid(m, bvh);
+            expect_matches_brute_force(m, bvh, random_rays(m, 500, n));
+        }
+    }
+}
+
+TEST(Bvh, RandomSoupsMatchBruteForce) {
+    for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+        const Mesh m = make_random_soup(3000, seed, 0.05f * float(seed));
+        for (unsigned leaf : {1u, 4u, 8u}) {
+            const Bvh bvh = build(m, leaf);
+            expect_valid(m, bvh);
+            expect_matches_brute_force(m, bvh, random_rays(m, 1500, seed * 7));
+        }
+    }
+}
+
+TEST(Bvh, ClosedMeshesMatchBruteForceForAllTests) {
+    const Mesh m = make_bumpy_torus(20000);
+    const Bvh bvh = build(m);
+    expect_valid(m, bvh);
+    const auto rays = random_rays(m, 3000, 99);
+    expect_matches_brute_force<Watertight>(m, bvh, rays);
+    expect_matches_brute_force<MollerTrumbore>(m, bvh, rays);
+    // The thesis test's tolerance accepts points just outside a triangle, so
+    // it can "hit" outside the triangle's own box, where a BVH never looks.
+    const std::size_t leaks = expect_matches_brute_force<ThesisTest>(m, bvh, rays, false);
+    std::printf("[ info ] thesis test: %zu of %zu rays differ between BVH and brute force\n", leaks, rays.size());
+}
+
+TEST(Bvh, SameTreeForOneAndTwoThreads) {
+    const Mesh m = make_bumpy_torus(200000);
+    BinnedSahBuilder::Config c;
+    c.parallel_threshold = 1000;
+    c.threads = 1;
+    const Bvh a = build_bvh<BinnedSahBuilder>(m, c);
+    c.threads = 2;
+    const Bvh b = build_bvh<BinnedSahBuilder>(m, c);
+    c.threads = 7;
+    const Bvh d = build_bvh<BinnedSahBuilder>(m, c);
+    ASSERT_EQ(a.nodes.size(), b.nodes.size());
+    ASSERT_EQ(a.nodes.size(), d.nodes.size());
+    EXPECT_EQ(std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(Node)), 0);
+    EXPECT_EQ(std::memcmp(a.nodes.data(), d.nodes.data(), a.nodes.size() * sizeof(Node)), 0);
+    EXPECT_EQ(a.prim_ids, b.prim_ids);
+    EXPECT_EQ(a.prim_ids, d.prim_ids);
+    expect_valid(m, a);
+}
+
+/// Rays from outside a closed mesh aimed exactly at vertices and edge points
+/// must hit it. Watertight: zero misses (asserted). Möller–Trumbore and the
+/// thesis test: misses counted and printed (data for the accuracy chart).
+TEST(Bvh, ExactVertexAndEdgeRaysNeverMissAClosedMesh) {
+    for (float scale : {1.0f, 1e3f}) {
+        for (float offset : {0.0f, 1e6f}) {
+            Mesh m = make_icosphere(4);
+            transform_positions(m, scale, vec3(offset, -offset, offset));
+            const Bvh bvh = build(m);
+            std::mt19937_64 rng(42);
+            std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+            const vec3 center(offset, -offset, offset);
+            std::size_t miss_wt = 0, miss_mt = 0, miss_th = 0, n = 0;
+            for (const Triangle& t : m.triangles) {
+                const vec3 a = m.positions[t.v[0]], b = m.positions[t.v[1]];
+                for (const vec3& target : {a, (a + b) * 0.5f, a + (b - a) * 0.25f}) {
+                    vec3 dir(U(rng), U(rng), U(rng));
+                    const vec3 o = target - glm::normalize(target - center + dir * 0.5f * scale) * 3.0f * scale;
+                    const Ray r{o, 0.0f, target - o, kInf};
+                    ++n;
+                    miss_wt += !intersect_closest<Watertight>(m, bvh, r).valid();
+                    miss_mt += !intersect_closest<MollerTrumbore>(m, bvh, r).valid();
+                    miss_th += !intersect_closest<ThesisTest>(m, bvh, r).valid();
+                }
+            }
+            EXPECT_EQ(miss_wt, 0u) << "scale " << scale << " offset " << offset;
+            std::printf("[ info ] vertex/edge rays, scale %g offset %g: misses of %zu: watertight %zu, "
+                        "moller-trumbore %zu, thesis %zu\n",
+                        scale, offset, n, miss_wt, miss_mt, miss_th);
+        }
+    }
+}
+
+TEST(Bvh, AxisParallelRaysWithSignedZerosHitAGrid) {
+    // A closed box made of a fine grid on each face: rays along ±x, ±y, ±z
+    // with ±0 in the other components, through grid vertices and edges.
+    Mesh m = make_icosphere(3);
+    const Bvh bvh = build(m);
+    std::size_t miss = 0, n = 0;
+    for (int axis = 0; axis < 3; ++axis)
+        for (float s : {1.0f, -1.0f})
+            for (float z : {0.0f, -0.0f})
+                for (const vec3& p : m.positions) {
+                    vec3 d(z), o = p * 0.999f;
+                    d[axis] = s;
+                    o[axis] = -5.0f * s;
+                    if (std::fabs(p[axis]) < 0.2f) continue;  // grazing
+                    const Ray r{o, 0.0f, d, kInf};
+                    const Hit h = intersect_closest(m, bvh, r);
+                    const Hit b = brute_force_closest(m, r);
+                    ++n;
+                    miss += !h.valid();
+                    EXPECT_EQ(h.prim, b.prim);
+                    EXPECT_EQ(h.t, b.t);
+                }
+    EXPECT_EQ(miss, 0u) << "of " << n;
+}
+
+TEST(Bvh, DegenerateNeedleAndNanTrianglesBuildValidTrees) {
+    Mesh m = make_random_soup(2000, 3, 0.1f);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    // needles and zero-area triangles
+    for (int i = 0; i < 500; ++i) {
+        const auto base = static_cast<std::uint32_t>(m.positions.size());
+        const vec3 p(float(i) / 500.0f, 0.5f, 0.5f);
+        m.positions.push_back(p);
+        m.positions.push_back(p + vec3(0.3f, 1e-7f, 0.0f));
+        m.positions.push_back(i % 2 ? p : p + vec3(0.6f, 2e-7f, 0.0f));
+        m.triangles.push_back({{base, base + 1, base + 2}});
+    }
+    // NaN and inf vertices
+    for (int i = 0; i < 50; ++i) {
+        const auto base = static_cast<std::uint32_t>(m.positions.size());
+        m.positions.push_back({nan, 0.5f, 0.5f});
+        m.positions.push_back({0.2f, i % 2 ? kInf : nan, 0.5f});
+        m.positions.push_back({0.5f, 0.5f, 0.5f});
+        m.triangles.push_back({{base, base + 1, base + 2}});
+    }
+    const Bvh bvh = build(m);
+    expect_valid(m, bvh);
+    const auto rays = random_rays(m, 2000, 5);
+    expect_matches_brute_force(m, bvh, rays);
+    for (const Ray& r : rays) {
+        const Hit h = intersect_closest(m, bvh, r);
+        if (h.valid()) {
+            EXPECT_LT(h.prim, 2500u) << "a NaN triangle was hit";
+        }
+    }
+}
+
+TEST(Bvh, CoincidentCentroidsAndIdenticalTriangles) {
+    Mesh m;
+    m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    for (int i = 0; i < 1000; ++i) m.triangles.push_back({{0, 1, 2}});
+    const Bvh bvh = build(m, 4);
+    expect_valid(m, bvh);
+    EXPECT_LE(bvh.depth(), RAYKIT_BVH_MAX_DEPTH);
+    const Ray r{{0.2f, 0.2f, 1.0f}, 0.0f, {0, 0, -1}, kInf};
+    const Hit h = intersect_closest(m, bvh, r);
+    EXPECT_EQ(h.prim, 0u) << "ties must go to the smallest index";
+    // rotated copies around one centre: distinct triangles, one centroid
+    Mesh s;
+    for (int i = 0; i < 300; ++i) {
+        const float a = 0.01f * float(i);
+        const auto base = static_cast<std::uint32_t>(s.positions.size());
+        for (int k = 0; k < 3; ++k) {
+            const float b = a + 2.0943951f * float(k);
+            s.positions.push_back({std::cos(b), std::sin(b), 0.001f * float(i)});
+        }
+        s.triangles.push_back({{base, base + 1, base + 2}});
+    }
+    const Bvh sb = build(s, 2);
+    expect_valid(s, sb);
+    expect_matches_brute_force(s, sb, random_rays(s, 1000, 3));
+}
+
+/// The deepest tree we can provoke: triangles shrinking geometrically towards
+/// a point (each half the size and distance of the previous), so every SAH
+/// split peels off one triangle. The depth bound must hold and traversal work.
+TEST(Bvh, GeometricProgressionStaysWithinTheDepthBound) {
+    Mesh m;
+    float s = 1.0f;
+    for (int i = 0; i < 4000; ++i) {
+        const auto base = static_cast<std::uint32_t>(m.positions.size());
+        const float x = s;
+        m.positions.push_back({x, 0.0f, 0.0f});
+        m.positions.push_back({x + s * 0.5f, s * 0.5f, 0.0f});
+        m.positions.push_back({x, s * 0.5f, s * 0.5f});
+        m.triangles.push_back({{base, base + 1, base + 2}});
+        s *= (i < 120 ? 0.5f : 0.999f);
+        if (s < 1e-30f) s = 1e-30f;
+    }
+    for (unsigned leaf : {1u, 8u}) {
+        const Bvh bvh = build(m, leaf);
+        expect_valid(m, bvh);
+        EXPECT_LE(bvh.depth(), RAYKIT_BVH_MAX_DEPTH);
+        std::printf("[ info ] geometric progression, leaf %u: depth %d\n", leaf, bvh.depth());
+        expect_matches_brute_force(m, bvh, random_rays(m, 1000, 2));
+    }
+}
+
+TEST(Bvh, RefitMatchesAFreshTreeAndBruteForce) {
+    Mesh m = make_bumpy_torus(20000);
+    Bvh bvh = build(m);
+    for (vec3& p : m.positions) p += vec3(0.2f * std::sin(3.0f * p.y), 0.1f * p.x, 0.0f);
+    const MeshView view(m);
+    refit(bvh, [&](std::uint32_t i) { return view.bounds(i); });
+    expect_valid(m, bvh);
+    expect_matches_brute_force(m, bvh, random_rays(m, 2000, 8));
+    // a refitted root box equals the exact bounds
+    AABB all;
+    for (std::size_t i = 0; i < m.triangle_count(); ++i) all.grow(view.bounds(i));
+    EXPECT_EQ(bvh.nodes[0].box, all);
+}
+
+TEST(Bvh, BinnedSahCostIsNearASweepSahReference) {
+    // Reference: the same mesh with 256 bins; 32 bins must be within 2 %.
+    const Mesh m = make_bumpy_torus(50000);
+    BinnedSahBuilder::Config c;
+    c.max_leaf_size = 4;
+    const double c32 = sah_cost(build_bvh<BinnedSahBuilder>(m, c));
+    c.bins = 256;
+    const double c256 = sah_cost(build_bvh<BinnedSahBuilder>(m, c));
+    std::printf("[ info ] SAH cost 32 bins %.3f, 256 bins %.3f\n", c32, c256);
+    EXPECT_LT(c32, c256 * 1.02);
+}
