@@ -1,0 +1,169 @@
+// The raykit command line, driven as a user would: exit codes, messages, and
+// trace output checked against brute force over all triangles.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "raykit.hpp"
+#include "raykit/io/obj.hpp"
+#include "raykit/io/obj_write.hpp"
+#include "raykit/scene/generate.hpp"
+
+#ifndef RAYKIT_CLI_PATH
+#error "RAYKIT_CLI_PATH must name the raykit executable"
+#endif
+
+using namespace raykit;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Result {
+    int code;
+    std::string out, err;
+};
+
+fs::path tmpdir() {
+    static const fs::path dir = [] {
+        fs::path d = fs::temp_directory_path() / ("raykit_cli_test_" + std::to_string(::getpid()));
+        fs::create_directories(d);
+        return d;
+    }();
+    return dir;
+}
+
+std::string slurp(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+Result run(const std::string& args) {
+    const fs::path out = tmpdir() / "stdout.txt", err = tmpdir() / "stderr.txt";
+    const std::string cmd =
+        std::string(RAYKIT_CLI_PATH) + " " + args + " >" + out.string() + " 2>" + err.string();
+    const int status = std::system(cmd.c_str());
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), slurp(out), slurp(err)};
+}
+
+void write(const fs::path& p, const std::string& text) {
+    std::ofstream(p, std::ios::binary) << text;
+}
+
+/// The last line of stderr must be a one-line reason starting "raykit: error:".
+void expect_clean_error(const Result& r, int code, const std::string& needle) {
+    EXPECT_EQ(r.code, code) << r.err;
+    EXPECT_NE(r.err.find("raykit: error: "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(needle), std::string::npos) << "stderr was: " << r.err;
+    EXPECT_LT(r.code, 128) << "crashed";
+}
+
+}  // namespace
+
+TEST(Cli, UsageErrorsExitWithTwo) {
+    expect_clean_error(run(""), 2, "no command");
+    expect_clean_error(run("frobnicate"), 2, "unknown command");
+    expect_clean_error(run("info"), 2, "info takes one");
+    expect_clean_error(run("info a.obj --nope"), 2, "unknown option --nope");
+    expect_clean_error(run("info a.obj --leaf"), 2, "--leaf needs a value");
+    expect_clean_error(run("info a.obj --leaf x"), 2, "--leaf expects a number");
+    expect_clean_error(run("info a.obj --builder magic"), 2, "unknown builder");
+    expect_clean_error(run("trace a.obj r.txt"), 2, "trace takes");
+    expect_clean_error(run("trace a.obj r.txt h.txt --test fancy"), 2, "unknown --test");
+    EXPECT_EQ(run("--help").code, 0);
+}
+
+TEST(Cli, MissingAndMalformedFilesExitWithOne) {
+    expect_clean_error(run("info /nonexistent/scene.obj"), 1, "/nonexistent/scene.obj");
+    const fs::path bad = tmpdir() / "bad.obj";
+    write(bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n");
+    expect_clean_error(run("info " + bad.string()), 1, "bad.obj:4");
+    write(bad, "v 0 0 0\nv 1 nan 0\n");
+    expect_clean_error(run("check " + bad.string()), 1, "bad.obj:2");
+}
+
+TEST(Cli, MalformedRaysNameTheLine) {
+    const fs::path scene = tmpdir() / "sphere.obj", rays = tmpdir() / "rays.txt", hits = tmpdir() / "hits.txt";
+    save_obj(make_icosphere(2), scene);
+    const std::string good = "0 0 -5 0 0 1 0 inf\n";
+    const std::string base = "trace " + scene.string() + " " + rays.string() + " " + hits.string();
+    write(rays, good + "0 0 -5 0 0 1 0\n");
+    expect_clean_error(run(base), 1, "rays.txt:2");
+    write(rays, good + good + "0 0 -5 0 zero 1 0 inf\n");
+    expect_clean_error(run(base), 1, "rays.txt:3");
+    write(rays, "0 0 nan 0 0 1 0 inf\n");
+    expect_clean_error(run(base), 1, "rays.txt:1");
+    write(rays, "0 0 -5 0 0 1 0 inf 7\n");
+    expect_clean_error(run(base), 1, "rays.txt:1");
+    write(rays, "inf 0 -5 0 0 1 0 inf\n");
+    expect_clean_error(run(base), 1, "rays.txt:1");
+    expect_clean_error(run("trace " + scene.string() + " /nonexistent/rays.txt " + hits.string()), 1, "rays.txt");
+}
+
+TEST(Cli, TraceMatchesBruteForce) {
+    Mesh m = make_bumpy_torus(5000);
+    transform_positions(m, 10.0f, vec3(1e5f, 0.0f, -3.0f));  // away from the origin
+    const fs::path scene = tmpdir() / "torus.obj", rays = tmpdir() / "rays2.txt", hits = tmpdir() / "hits2.txt",
+                   anyf = tmpdir() / "any2.txt";
+    save_obj(m, scene);
+    const Mesh loaded = load_obj(scene);  // what the CLI sees (9 significant digits round-trip exactly)
+    ASSERT_EQ(loaded.positions, m.positions);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+    std::ostringstream text;
+    std::vector<Ray> rs;
+    for (int i = 0; i < 2000; ++i) {
+        Ray r;
+        r.org = vec3(1e5f, 0.0f, -3.0f) + vec3(U(rng), U(rng), U(rng)) * 20.0f;
+        const Triangle& t = m.triangles[std::size_t(rng()) % m.triangles.size()];
+        r.dir = (i % 3 == 0 ? m.positions[t.v[0]] : vec3(1e5f, 0.0f, -3.0f) + vec3(U(rng), U(rng), U(rng))) - r.org;
+        r.tmax = i % 5 == 0 ? 0.5f : kInf;
+        rs.push_back(r);
+        char line[256];
+        std::snprintf(line, sizeof line, "%.9g %.9g %.9g %.9g %.9g %.9g %.9g %s\n", r.org.x, r.org.y, r.org.z,
+                      r.dir.x, r.dir.y, r.dir.z, r.tmin, i % 5 == 0 ? "0.5" : "inf");
+        text << line;
+    }
+    write(rays, text.str());
+    Result r = run("trace " + scene.string() + " " + rays.string() + " " + hits.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    r = run("trace " + scene.string() + " " + rays.string() + " " + anyf.string() + " --any-hit");
+    ASSERT_EQ(r.code, 0) << r.err;
+    std::istringstream h(slurp(hits)), a(slurp(anyf));
+    std::size_t bad = 0, hitcount = 0;
+    for (const Ray& ray : rs) {
+        long prim;
+        float t, u, v;
+        int any;
+        ASSERT_TRUE(h >> prim >> t >> u >> v);
+        ASSERT_TRUE(a >> any);
+        const Hit o = brute_force_closest(m, ray);
+        hitcount += o.valid();
+        if (o.valid() ? (prim != long(o.prim) || t != o.t) : prim != -1) ++bad;
+        if (any != int(o.valid())) ++bad;
+    }
+    EXPECT_EQ(bad, 0u);
+    EXPECT_GT(hitcount, 500u);
+}
+
+TEST(Cli, InfoJsonAndCheck) {
+    const fs::path scene = tmpdir() / "soup.obj";
+    save_obj(make_random_soup(2000, 3), scene);
+    Result r = run("info " + scene.string() + " --json");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("\"triangles\": 2000"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("\"sah_cost\": "), std::string::npos) << r.out;
+    r = run("check " + scene.string() + " --rays 500 --seed 3");
+    EXPECT_EQ(r.code, 0) << r.out << r.err;
+    EXPECT_NE(r.out.find("0 disagreements"), std::string::npos) << r.out;
+    r = run("generate torus " + (tmpdir() / "t.obj").string() + " --tris 1000");
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(load_obj(tmpdir() / "t.obj").triangle_count(), 1024u);  // 2·nu·nv, nv = 16, nu = 32
+}
