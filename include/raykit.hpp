@@ -28,6 +28,7 @@
 #include "raykit/scene/mesh.hpp"
 #include "raykit/scene/build.hpp"
 #include "raykit/scene/trace.hpp"
+#include "raykit/scene/leaf_triangles.hpp"
 #include "raykit/io/parse_error.hpp"
 #if __has_include("raykit/io/obj.hpp")
 #include "raykit/io/obj.hpp"

@@ -7,6 +7,7 @@
 
 #include "raykit.hpp"
 #include "raykit/scene/generate.hpp"
+#include "raykit/scene/leaf_triangles.hpp"
 
 using namespace raykit;
 
@@ -299,4 +300,30 @@ TEST(Bvh, BinnedSahCostIsNearASweepSahReference) {
     const double c256 = sah_cost(build_bvh<BinnedSahBuilder>(m, c));
     std::printf("[ info ] SAH cost 32 bins %.3f, 256 bins %.3f\n", c32, c256);
     EXPECT_LT(c32, c256 * 1.02);
+}
+
+TEST(Bvh, LeafTriangleCopyGivesIdenticalAnswers) {
+    Mesh m = make_bumpy_torus(30000);
+    transform_positions(m, 3.0f, vec3(1e4f, 0.0f, 0.0f));
+    const Bvh bvh = build(m);
+    LeafTriangles lt(m, bvh);
+    EXPECT_EQ(lt.memory_bytes(), m.triangle_count() * 36);
+    std::size_t bad = 0;
+    for (const Ray& r : random_rays(m, 4000, 21)) {
+        const Hit a = intersect_closest(m, bvh, r), b = intersect_closest(lt, bvh, r);
+        bad += a.prim != b.prim || a.t != b.t || a.u != b.u || a.v != b.v;
+        bad += intersect_any(m, bvh, r) != intersect_any(lt, bvh, r);
+    }
+    EXPECT_EQ(bad, 0u);
+    // after moving vertices: refit + update keeps them equal to brute force
+    for (vec3& p : m.positions) p.z += 0.1f * std::sin(p.x);
+    const MeshView view(m);
+    Bvh moved = bvh;
+    refit(moved, [&](std::uint32_t i) { return view.bounds(i); });
+    lt.update(m, moved);
+    for (const Ray& r : random_rays(m, 1000, 22)) {
+        const Hit a = intersect_closest(lt, moved, r), o = brute_force_closest(m, r);
+        EXPECT_EQ(a.prim, o.prim);
+        EXPECT_EQ(a.t, o.t);
+    }
 }

@@ -184,3 +184,46 @@ TEST(SahCost, MatchesAHandComputedTree) {
     bvh.prim_ids = {0, 1, 2};
     EXPECT_NEAR(sah_cost(bvh), 1.0 + 6.0 / 24.0 * 2 + 16.0 / 24.0 * 1, 1e-9);
 }
+
+TEST(Slab, SimdPathsEqualTheScalarTest) {
+    // SlabRay::test / test_pair (SSE4.1 / AVX when compiled in) against the
+    // scalar slab_test on random boxes, including zero and NaN-producing cases.
+    std::mt19937 rng(17);
+    std::uniform_real_distribution<float> U(-2.0f, 2.0f);
+    std::uniform_int_distribution<int> pick(0, 5);
+    auto comp = [&]() {
+        switch (pick(rng)) {
+            case 0: return 0.0f;
+            case 1: return -0.0f;
+            case 2: return 1e-30f;
+            default: return U(rng);
+        }
+    };
+    std::size_t disagreements = 0;
+    for (int i = 0; i < 200000; ++i) {
+        Node pair[2];
+        for (Node& n : pair) {
+            vec3 a(std::round(U(rng)), U(rng), U(rng)), b(U(rng), std::round(U(rng)), U(rng));
+            n.box = {glm::min(a, b), glm::max(a, b)};
+            n.index = 12345;  // an integer behind max.z, as in a real node
+            n.count = static_cast<std::uint32_t>(i & 7);
+        }
+        const vec3 o(std::round(U(rng)), std::round(U(rng)), U(rng));
+        const Ray r{o, 0.0f, vec3(comp(), comp(), comp()), i % 3 ? kInf : 2.0f};
+        if (r.dir == vec3(0.0f)) continue;
+        const SlabRay sr(r);
+        const RayInv ri(r.dir);
+        float ts[2], tv[2];
+        bool hs[2];
+        for (int k = 0; k < 2; ++k)
+            hs[k] = slab_test(&pair[k].box.min.x, &pair[k].box.max.x, r.org, ri, r.tmin, r.tmax, ts[k]);
+        const unsigned m = sr.test_pair(pair[0].box, pair[1].box, r.tmin, r.tmax, tv[0], tv[1]);
+        for (int k = 0; k < 2; ++k) {
+            float t1;
+            const bool h1 = sr.test(pair[k].box, r.tmin, r.tmax, t1);
+            const bool h2 = (m >> k) & 1u;
+            if (h1 != hs[k] || h2 != hs[k] || (hs[k] && (t1 != ts[k] || tv[k] != ts[k]))) ++disagreements;
+        }
+    }
+    EXPECT_EQ(disagreements, 0u);
+}

@@ -10,6 +10,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <new>
 #include <type_traits>
 #include <vector>
 
@@ -30,9 +31,34 @@ static_assert(sizeof(Node) == 32 && alignof(Node) == 32);
 static_assert(std::is_standard_layout_v<Node>);
 static_assert(offsetof(Node, box) == 0 && offsetof(Node, index) == 24 && offsetof(Node, count) == 28);
 
+/// Allocator that places element 1 of an array of 32-byte nodes on a 64-byte
+/// boundary. Children come in pairs starting at odd indices (root 0, its
+/// children 1 and 2, ...), so every pair then fills exactly one cache line.
+template <class T>
+struct PairAlignedAllocator {
+    static_assert(sizeof(T) == 32, "PairAlignedAllocator is for 32-byte nodes");
+    using value_type = T;
+    PairAlignedAllocator() = default;
+    template <class U>
+    PairAlignedAllocator(const PairAlignedAllocator<U>&) noexcept {}  // NOLINT implicit
+    T* allocate(std::size_t n) {
+        void* p = ::operator new((n + 1) * sizeof(T), std::align_val_t(64));
+        return reinterpret_cast<T*>(static_cast<char*>(p) + 32);
+    }
+    void deallocate(T* p, std::size_t n) noexcept {
+        ::operator delete(reinterpret_cast<char*>(p) - 32, (n + 1) * sizeof(T), std::align_val_t(64));
+    }
+    template <class U>
+    bool operator==(const PairAlignedAllocator<U>&) const noexcept {
+        return true;
+    }
+};
+
+using NodeArray = std::vector<Node, PairAlignedAllocator<Node>>;
+
 /// A bounding volume hierarchy over primitives 0..n-1 (the caller's order).
 struct Bvh {
-    std::vector<Node> nodes;
+    NodeArray nodes;
     std::vector<std::uint32_t> prim_ids;
 
     bool empty() const noexcept { return nodes.empty(); }

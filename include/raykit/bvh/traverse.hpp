@@ -42,10 +42,9 @@ template <class Mode = ClosestHit, class LeafFn, class Stats = std::nullptr_t>
 bool traverse(const Bvh& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
     if (bvh.nodes.empty()) return false;
     const Node* RAYKIT_RESTRICT nodes = bvh.nodes.data();
-    const RayInv ri(ray.dir);
+    const SlabRay sr(ray);
     float t_root;
-    if (!slab_test(&nodes[0].box.min.x, &nodes[0].box.max.x, ray.org, ri, ray.tmin, tmax, t_root))
-        return false;
+    if (!sr.test(nodes[0].box, ray.tmin, tmax, t_root)) return false;
 
     struct Entry {
         std::uint32_t node;
@@ -67,9 +66,14 @@ bool traverse(const Bvh& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats 
             if constexpr (!std::is_same_v<Stats, std::nullptr_t>) ++stats->nodes;
             const Node& l = nodes[n.index];
             const Node& r = nodes[n.index + 1];
+#if defined(__GNUC__) || defined(__clang__)
+            // start fetching the grandchildren while the children are tested
+            if (!l.is_leaf()) __builtin_prefetch(&nodes[l.index]);
+            if (!r.is_leaf()) __builtin_prefetch(&nodes[r.index]);
+#endif
             float tl, tr;
-            const bool hl = slab_test(&l.box.min.x, &l.box.max.x, ray.org, ri, ray.tmin, tmax, tl);
-            const bool hr = slab_test(&r.box.min.x, &r.box.max.x, ray.org, ri, ray.tmin, tmax, tr);
+            const unsigned mask = sr.test_pair(l.box, r.box, ray.tmin, tmax, tl, tr);
+            const bool hl = mask & 1u, hr = mask & 2u;
             if (hl && hr) {
                 std::uint32_t nearc = n.index, farc = n.index + 1;
                 float tf = tr;

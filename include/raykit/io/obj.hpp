@@ -48,30 +48,42 @@
 // * `mtllib` may appear several times and list several files. If the whole
 //   rest of the line names an existing file it is taken as one name (spaces
 //   allowed); otherwise it is split on whitespace, where "\ " is an escaped
-//   space inside a name. A missing or unreadable library is a warning, not an
+//   space inside a name and a word starting with `#` ends the list. Paths are
+//   relative to the OBJ's folder (`base_dir`); each library is read once. A
+//   missing or unreadable library is a warning in Mesh::warnings, not an
 //   error; a malformed one throws ParseError naming the MTL file. With
 //   ObjOptions::load_materials == false, `mtllib` is ignored and every
 //   material id is kNoMaterial (no warnings).
-// * All other keywords (`s`, `l`, `p`, `vp`, `curv`, `c`, ...) are ignored.
+// * All other keywords (`s`, `l`, `p`, `vp`, `curv`, `c`, ...) are ignored:
+//   lines and points make no triangles.
 //
-// Lexical rules (OBJ and MTL): `#` starts a comment; a line whose last
-// non-blank character is `\` continues on the next line (also inside
-// comments), blank lines inside a continuation are skipped; LF or CRLF line
-// endings; spaces, tabs and runs of them separate tokens; the last line needs
-// no newline. A UTF-8 byte-order mark is skipped and UTF-16 text (with a BOM)
-// is converted to UTF-8. Numbers: decimal floats with optional sign (`+1`,
-// `.5`, `-.5`, `5.`, `1e-05`, `1E+5`); `nan`, `inf` and values that overflow a
-// float are errors, values too small for a float become 0 (or a subnormal).
+// Lexical rules (OBJ and MTL)
+// ---------------------------
+// * A line whose first non-blank character is `#` is a comment. In statements
+//   made of numbers or indices (v, vt, vn, f, Kd, Ns, d, ...) a `#` anywhere
+//   ends the data; statements that take a name or a file (o, g, usemtl,
+//   newmtl, map_Kd) keep the whole rest of the line, `#` included (exporters
+//   write names such as "Material_#25").
+// * A line whose last non-blank character is `\` continues on the next line
+//   (also inside comments); blank lines inside a continuation are skipped.
+// * LF or CRLF line endings; spaces, tabs and runs of them separate tokens;
+//   leading and trailing blanks are ignored; the last line needs no newline.
+// * A UTF-8 byte-order mark is skipped; UTF-16 text (with a BOM) is converted
+//   to UTF-8.
+// * Numbers: decimal floats with an optional sign (`+1`, `.5`, `-.5`, `5.`,
+//   `1e-05`, `1E+5`); `nan`, `inf` and values that overflow a float are
+//   errors, values too small for a float become 0 (or a subnormal).
 //
 // MTL
 // ---
-// `newmtl` (name = rest of line, trimmed), `Ka Kd Ks Ke` (r [g b]; one value
-// means grey; `spectral` / `xyz` forms are ignored), `Ns Ni d Tr illum`,
+// `newmtl NAME` (rest of line, trimmed), `Ka Kd Ks Ke` (r [g b]; one value
+// means grey; the `spectral` / `xyz` forms are ignored), `Ns Ni d Tr illum`,
 // `map_Kd [options] FILE`. `d` wins over `Tr` whatever their order; `Tr` alone
 // gives d = 1 - Tr. map_Kd options (-blendu -blendv -bm -boost -cc -clamp
 // -colorspace -imfchan -mm -o -s -t -texres -type) are skipped with their
 // arguments and the rest of the line (trimmed, spaces allowed) is the file
-// name, stored as base_dir / FILE. Other keywords are ignored.
+// name, stored as base_dir / FILE. Statements before the first `newmtl` and
+// other keywords are ignored.
 #pragma once
 
 #include <algorithm>
@@ -83,6 +95,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <initializer_list>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -221,9 +234,10 @@ inline std::string_view obj_decode_text(std::string_view text, std::string& stor
     return text;
 }
 
-/// Splits text into logical lines: joins `\` continuations, strips `#`
-/// comments and surrounding whitespace. Line numbers are 1-based physical
-/// lines (the first line of a continued logical line).
+/// Splits text into logical lines: joins `\` continuations and strips
+/// surrounding whitespace (comments are left to the caller, see
+/// obj_strip_comment). Line numbers are 1-based physical lines (the first line
+/// of a continued logical line).
 class ObjLineReader {
 public:
     explicit ObjLineReader(std::string_view text) noexcept : text_(text) {}
@@ -263,9 +277,6 @@ public:
             result = joined_;
             break;
         }
-        if (const void* hash = std::memchr(result.data(), '#', result.size())) {
-            result = result.substr(0, static_cast<std::size_t>(static_cast<const char*>(hash) - result.data()));
-        }
         line = obj_trim(result);
         return true;
     }
@@ -276,6 +287,16 @@ private:
     std::size_t physical_ = 0;
     std::string joined_;
 };
+
+/// Cuts a data statement (numbers, indices) at its `#` comment. Statements
+/// that take a name (usemtl, newmtl, o, g, mtllib, map_Kd) keep the whole rest
+/// of the line instead: names such as "Material_#353" are common.
+inline std::string_view obj_strip_comment(std::string_view s) noexcept {
+    if (const void* hash = std::memchr(s.data(), '#', s.size())) {
+        s = s.substr(0, static_cast<std::size_t>(static_cast<const char*>(hash) - s.data()));
+    }
+    return s;
+}
 
 // ---------------------------------------------------------------- numbers
 
@@ -293,8 +314,18 @@ inline NumStatus obj_parse_float(std::string_view tok, float& out) noexcept {
     if (q != e && *q == '-') ++q;
     if (q == e) return NumStatus::malformed;
     if (!((*q >= '0' && *q <= '9') || *q == '.')) {
-        const char c = static_cast<char>(*q | 0x20);  // ASCII lower case
-        return (c == 'n' || c == 'i') ? NumStatus::not_finite : NumStatus::malformed;
+        // nan, nan(...), inf, infinity in any case: a number, but not finite.
+        std::string_view word(q, static_cast<std::size_t>(e - q));
+        auto is = [&](std::string_view w) {
+            if (word.size() < w.size()) return false;
+            for (std::size_t i = 0; i < w.size(); ++i) {
+                if ((word[i] | 0x20) != w[i]) return false;
+            }
+            return true;
+        };
+        const bool nonfinite = (is("nan") && (word.size() == 3 || word[3] == '(')) ||
+                               (is("inf") && word.size() == 3) || (is("infinity") && word.size() == 8);
+        return nonfinite ? NumStatus::not_finite : NumStatus::malformed;
     }
     float value = 0.0f;
     auto [ptr, ec] = std::from_chars(p, e, value, std::chars_format::general);
@@ -350,6 +381,22 @@ inline bool obj_parse_int(const char*& p, const char* e, std::int64_t& out) noex
     return true;
 }
 
+/// Parses `tok` as a finite float or throws ParseError(file, line) naming the
+/// statement `key`.
+inline float obj_number_or_throw(std::string_view tok, std::string_view key, const std::string& file,
+                                 std::size_t line) {
+    float v = 0.0f;
+    const NumStatus status = obj_parse_float(tok, v);
+    if (status == NumStatus::ok) return v;
+    const std::string where = " in '" + std::string(key) + "'";
+    switch (status) {
+        case NumStatus::not_finite: throw ParseError(file, line, "non-finite number " + obj_quote(tok) + where);
+        case NumStatus::overflow:
+            throw ParseError(file, line, "number " + obj_quote(tok) + " overflows a float" + where);
+        default: throw ParseError(file, line, "malformed number " + obj_quote(tok) + where);
+    }
+}
+
 // ---------------------------------------------------------------- MTL
 
 /// Number of arguments (min, max) of a texture map option; {0, 0} if unknown.
@@ -393,7 +440,8 @@ inline std::string_view mtl_texture_file(std::string_view rest) noexcept {
 
 class MtlParser {
 public:
-    MtlParser(std::string name, std::filesystem::path base_dir) : name_(std::move(name)), base_(std::move(base_dir)) {}
+    MtlParser(std::string name, std::filesystem::path base_dir)
+        : name_(std::move(name)), base_(std::move(base_dir)) {}
 
     std::vector<Material> parse(std::string_view text) {
         std::string decoded;
@@ -401,7 +449,7 @@ public:
         ObjLineReader reader(text);
         std::string_view line;
         while (reader.next(line, line_)) {
-            if (line.empty()) continue;
+            if (line.empty() || line[0] == '#') continue;
             std::string_view rest = line;
             const std::string_view key = obj_next_token(rest);
             if (key == "newmtl") {
@@ -427,6 +475,7 @@ public:
             } else if (key == "Ni") {
                 m.ni = scalar(rest, key);
             } else if (key == "d") {
+                rest = obj_strip_comment(rest);
                 std::string_view probe = rest;
                 if (obj_next_token(probe) == "-halo") rest = probe;
                 m.d = scalar(rest, key);
@@ -435,6 +484,7 @@ public:
                 tr_ = scalar(rest, key);
                 has_tr_ = true;
             } else if (key == "illum") {
+                rest = obj_strip_comment(rest);
                 const std::string_view tok = obj_next_token(rest);
                 const char* p = tok.data();
                 std::int64_t v = 0;
@@ -456,23 +506,18 @@ private:
     [[noreturn]] void fail(const std::string& msg) const { throw ParseError(name_, line_, msg); }
 
     float number(std::string_view tok, std::string_view key) const {
-        float v = 0.0f;
-        switch (obj_parse_float(tok, v)) {
-            case NumStatus::ok: return v;
-            case NumStatus::not_finite: fail("non-finite number " + obj_quote(tok) + " in '" + std::string(key) + "'");
-            case NumStatus::overflow: fail("number " + obj_quote(tok) + " overflows a float in '" + std::string(key) + "'");
-            case NumStatus::malformed: break;
-        }
-        fail("malformed number " + obj_quote(tok) + " in '" + std::string(key) + "'");
+        return obj_number_or_throw(tok, key, name_, line_);
     }
 
     float scalar(std::string_view rest, std::string_view key) const {
+        rest = obj_strip_comment(rest);
         const std::string_view tok = obj_next_token(rest);
         if (tok.empty()) fail("'" + std::string(key) + "' needs a value");
         return number(tok, key);
     }
 
     void color(std::string_view rest, std::string_view key, vec3& out) const {
+        rest = obj_strip_comment(rest);
         const std::string_view r = obj_next_token(rest);
         if (r == "spectral" || r == "xyz") return;  // not supported: keep the default
         if (r.empty()) fail("'" + std::string(key) + "' needs 1 or 3 values");
@@ -518,21 +563,21 @@ public:
         ObjLineReader reader(text);
         std::string_view line;
         while (reader.next(line, line_)) {
-            if (line.empty()) continue;
+            if (line.empty() || line[0] == '#') continue;
             std::string_view rest = line;
             const std::string_view key = obj_next_token(rest);
             if (key.size() == 1) {
                 switch (key[0]) {
-                    case 'v': parse_v(rest); break;
-                    case 'f': parse_f(rest); break;
+                    case 'v': parse_v(obj_strip_comment(rest)); break;
+                    case 'f': parse_f(obj_strip_comment(rest)); break;
                     case 'o': open_group(mesh_.objects, rest); break;
                     case 'g': open_group(mesh_.groups, rest); break;
                     default: break;  // s, l, p, ...
                 }
             } else if (key == "vt") {
-                parse_vt(rest);
+                parse_vt(obj_strip_comment(rest));
             } else if (key == "vn") {
-                parse_vn(rest);
+                parse_vn(obj_strip_comment(rest));
             } else if (key == "usemtl") {
                 use_material(obj_trim(rest));
             } else if (key == "mtllib") {
@@ -550,14 +595,7 @@ private:
     [[noreturn]] void fail(const std::string& msg) const { throw ParseError(name_, line_, msg); }
 
     float number(std::string_view tok, const char* what) const {
-        float v = 0.0f;
-        switch (obj_parse_float(tok, v)) {
-            case NumStatus::ok: return v;
-            case NumStatus::not_finite: fail(std::string("non-finite number ") + obj_quote(tok) + " in '" + what + "'");
-            case NumStatus::overflow: fail(std::string("number ") + obj_quote(tok) + " overflows a float in '" + what + "'");
-            case NumStatus::malformed: break;
-        }
-        fail(std::string("malformed number ") + obj_quote(tok) + " in '" + what + "'");
+        return obj_number_or_throw(tok, what, name_, line_);
     }
 
     /// Reads between `min` and `max` numbers into out[0..]; checks that any
@@ -596,16 +634,19 @@ private:
 
     std::uint32_t resolve(std::int64_t idx, std::size_t count, int kind, std::string_view corner) {
         static constexpr const char* kKind[] = {"vertex", "texture coordinate", "normal"};
-        if (idx == 0) fail(std::string(kKind[kind]) + " index 0 in face corner " + obj_quote(corner) + " (indices start at 1)");
+        auto in_corner = [&] { return " in face corner " + obj_quote(corner); };  // only built on failure
+        if (idx == 0) fail(std::string(kKind[kind]) + " index 0" + in_corner() + " (indices start at 1)");
         if (idx < 0) {
             if (static_cast<std::uint64_t>(-idx) > count) {
-                fail(std::string("relative ") + kKind[kind] + " index " + std::to_string(idx) + " in face corner " +
-                     obj_quote(corner) + " is out of range (only " + std::to_string(count) + " defined)");
+                fail(std::string("relative ") + kKind[kind] + " index " + std::to_string(idx) + in_corner() +
+                     " is out of range (only " + std::to_string(count) + " defined)");
             }
-            return static_cast<std::uint32_t>(static_cast<std::int64_t>(count) + idx);
+            const std::int64_t r = static_cast<std::int64_t>(count) + idx;
+            if (r >= static_cast<std::int64_t>(kInvalidIndex)) fail("index too large" + in_corner());
+            return static_cast<std::uint32_t>(r);
         }
-        if (static_cast<std::uint64_t>(idx) > count) {
-            fail(std::string(kKind[kind]) + " index " + std::to_string(idx) + " in face corner " + obj_quote(corner) +
+        if (static_cast<std::uint64_t>(idx) > count || idx >= static_cast<std::int64_t>(kInvalidIndex)) {
+            fail(std::string(kKind[kind]) + " index " + std::to_string(idx) + in_corner() +
                  " is out of range (only " + std::to_string(count) + " defined so far)");
         }
         return static_cast<std::uint32_t>(idx - 1);
@@ -677,7 +718,8 @@ private:
             return;
         }
         if (current_slot_ != kNoMaterial && slot_names_[current_slot_] == name) return;
-        auto [it, inserted] = slot_of_name_.try_emplace(std::string(name), static_cast<std::uint32_t>(slot_names_.size()));
+        const auto next_slot = static_cast<std::uint32_t>(slot_names_.size());
+        auto [it, inserted] = slot_of_name_.try_emplace(std::string(name), next_slot);
         if (inserted) {
             slot_names_.emplace_back(name);
             slot_lines_.push_back(line_);
@@ -685,7 +727,8 @@ private:
         current_slot_ = it->second;
     }
 
-    /// Splits an mtllib argument list on whitespace; "\ " escapes a space.
+    /// Splits an mtllib argument list on whitespace; "\ " escapes a space and
+    /// a word starting with `#` starts a comment.
     static std::vector<std::string> split_escaped(std::string_view s) {
         std::vector<std::string> out;
         std::string cur;
@@ -695,6 +738,8 @@ private:
             if (c == '\\' && i + 1 < s.size() && (s[i + 1] == ' ' || s[i + 1] == '\t')) {
                 cur.push_back(s[++i]);
                 in_token = true;
+            } else if (c == '#' && !in_token) {
+                break;  // a trailing comment
             } else if (obj_is_space(c)) {
                 if (in_token) out.push_back(std::move(cur));
                 cur.clear();
@@ -746,8 +791,9 @@ private:
 
     Mesh finish() {
         const auto n_tri = static_cast<std::uint32_t>(triangles_.size());
-        if (!mesh_.objects.empty()) mesh_.objects.back().triangle_count = n_tri - mesh_.objects.back().first_triangle;
-        if (!mesh_.groups.empty()) mesh_.groups.back().triangle_count = n_tri - mesh_.groups.back().first_triangle;
+        for (std::vector<Group>* list : {&mesh_.objects, &mesh_.groups}) {
+            if (!list->empty()) list->back().triangle_count = n_tri - list->back().first_triangle;
+        }
 
         // Vertices.
         if (!used_vt_ && !used_vn_) {

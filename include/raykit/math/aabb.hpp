@@ -17,17 +17,13 @@ struct AABB {
     static AABB of_point(const vec3& p) noexcept { return {p, p}; }
 
     /// Grows by a point; NaN coordinates are ignored (comparisons are false).
-    void grow(const vec3& p) noexcept {
-        for (int a = 0; a < 3; ++a) {
-            min[a] = robust_min(p[a], min[a]);
-            max[a] = robust_max(p[a], max[a]);
-        }
+    RAYKIT_INLINE void grow(const vec3& p) noexcept {
+        min.x = robust_min(p.x, min.x), min.y = robust_min(p.y, min.y), min.z = robust_min(p.z, min.z);
+        max.x = robust_max(p.x, max.x), max.y = robust_max(p.y, max.y), max.z = robust_max(p.z, max.z);
     }
-    void grow(const AABB& b) noexcept {
-        for (int a = 0; a < 3; ++a) {
-            min[a] = robust_min(b.min[a], min[a]);
-            max[a] = robust_max(b.max[a], max[a]);
-        }
+    RAYKIT_INLINE void grow(const AABB& b) noexcept {
+        min.x = robust_min(b.min.x, min.x), min.y = robust_min(b.min.y, min.y), min.z = robust_min(b.min.z, min.z);
+        max.x = robust_max(b.max.x, max.x), max.y = robust_max(b.max.y, max.y), max.z = robust_max(b.max.z, max.z);
     }
     bool is_empty() const noexcept { return !(min.x <= max.x && min.y <= max.y && min.z <= max.z); }
     vec3 extent() const noexcept { return is_empty() ? vec3(0.0f) : max - min; }
