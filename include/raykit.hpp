@@ -24,6 +24,7 @@
 #include "raykit/bvh/validate.hpp"
 #include "raykit/bvh/binned_sah.hpp"
 #include "raykit/bvh/refit.hpp"
+#include "raykit/bvh/rebuild_policy.hpp"
 #include "raykit/bvh/traverse.hpp"
 #include "raykit/scene/mesh.hpp"
 #include "raykit/scene/build.hpp"

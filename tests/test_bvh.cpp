@@ -327,3 +327,32 @@ TEST(Bvh, LeafTriangleCopyGivesIdenticalAnswers) {
         EXPECT_EQ(a.t, o.t);
     }
 }
+
+TEST(Bvh, RebuildPolicyFiresWhenNeighbourhoodsBreakNotBefore) {
+    const Mesh rest = make_bumpy_torus(20000);
+    Mesh m = rest;
+    Bvh bvh = build(m);
+    RebuildPolicy policy;
+    policy.reset(sah_cost(bvh));
+    int first_rebuild = -1;
+    for (int f = 1; f <= 20; ++f) {
+        for (std::size_t i = 0; i < m.positions.size(); ++i) {
+            const vec3 p = rest.positions[i];
+            vec3 q = p + vec3(0.0f, 0.0f, 0.08f * std::sin(6.0f * p.x + 0.3f * float(f)));
+            if (f > 10 && std::atan2(p.y, p.x) > 2.0f) q += vec3(-0.5f, 1.0f, 0.6f) * 0.25f * float(f - 10);
+            m.positions[i] = q;
+        }
+        const MeshView view(m);
+        refit(bvh, [&](std::uint32_t i) { return view.bounds(i); });
+        const double cost = sah_cost(bvh);
+        if (policy.should_rebuild(cost)) {
+            if (first_rebuild < 0) first_rebuild = f;
+            EXPECT_GT(f, 10) << "wave frames keep neighbourhoods; growth " << policy.growth(cost);
+            bvh = build(m);
+            policy.reset(sah_cost(bvh));
+        }
+        expect_valid(m, bvh);
+    }
+    EXPECT_GT(first_rebuild, 10);
+    EXPECT_LE(first_rebuild, 15) << "the thrown sector must trigger a rebuild within 5 frames";
+}

@@ -66,8 +66,9 @@
 //   write names such as "Material_#25").
 // * A line whose last non-blank character is `\` continues on the next line
 //   (also inside comments); blank lines inside a continuation are skipped.
-// * LF or CRLF line endings; spaces, tabs and runs of them separate tokens;
-//   leading and trailing blanks are ignored; the last line needs no newline.
+// * LF or CRLF line endings (not CR alone); spaces, tabs and runs of them
+//   separate tokens; leading and trailing blanks are ignored; the last line
+//   needs no newline.
 // * A UTF-8 byte-order mark is skipped; UTF-16 text (with a BOM) is converted
 //   to UTF-8.
 // * Numbers: decimal floats with an optional sign (`+1`, `.5`, `-.5`, `5.`,
