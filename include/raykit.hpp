@@ -31,6 +31,5 @@
 #include "raykit/scene/trace.hpp"
 #include "raykit/scene/leaf_triangles.hpp"
 #include "raykit/io/parse_error.hpp"
-#if __has_include("raykit/io/obj.hpp")
 #include "raykit/io/obj.hpp"
-#endif
+#include "raykit/io/obj_write.hpp"
