@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <random>
 
 #include "raykit.hpp"
@@ -355,4 +356,26 @@ TEST(Bvh, RebuildPolicyFiresWhenNeighbourhoodsBreakNotBefore) {
     }
     EXPECT_GT(first_rebuild, 10);
     EXPECT_LE(first_rebuild, 15) << "the thrown sector must trigger a rebuild within 5 frames";
+}
+
+TEST(Bvh, RealMeshesMatchBruteForce) {
+    const std::string dir = RAYKIT_SHARED_DATA_DIR;
+    int tested = 0;
+    for (const char* rel : {"/obj/stanford_bunny/stanford-bunny.obj", "/obj/thesis_scene/Scene.obj",
+                            "/obj/spot/spot.obj", "/obj/helix/CornellBox-Glossy/CornellBox-Glossy.obj"}) {
+        const std::string path = dir + rel;
+        if (!std::filesystem::exists(path)) continue;
+        const Mesh m = load_obj(path);
+        const Bvh bvh = build(m);
+        expect_valid(m, bvh);
+#if defined(__SANITIZE_ADDRESS__)
+        const std::size_t n = 150;
+#else
+        const std::size_t n = 1200;
+#endif
+        SCOPED_TRACE(path);
+        expect_matches_brute_force(m, bvh, random_rays(m, n, 31));
+        ++tested;
+    }
+    if (tested == 0) GTEST_SKIP() << "shared data not found under " << dir;
 }
