@@ -2,12 +2,17 @@
 //
 //   Bvh bvh = BinnedSahBuilder::build(prim_boxes, prim_centers, {.max_leaf_size = 4});
 //
-// Each node bins primitive centroids into `bins` buckets on all three axes,
-// sweeps the buckets for the split of least SAH cost
+// Each node bins primitive centroids into `bins` buckets on all three axes
+// (nodes of at most 16 primitives instead sort them on each axis and try all
+// n-1 splits exactly), sweeps the buckets for the split of least SAH cost
 //   Ct·SA(node) + Ci·(SA(L)·|L| + SA(R)·|R|)
 // and makes a leaf instead when that is cheaper than Ci·SA(node)·|node| and the
 // node holds at most `max_leaf_size` primitives. Coincident centroids fall back
 // to a split by index; below kMedianDepth (bvh/depth.hpp) splits are medians.
+//
+// The builder partitions a compact array of (box, centroid, index) records in
+// place, so every pass streams through memory; a partition pass also
+// accumulates both children's bounds.
 //
 // Parallel: the two subtrees of large nodes build on separate threads
 // (fork/join, down to a depth of log2(threads)+2), and the binning and bounds
@@ -51,17 +56,24 @@ struct BinnedSahBuilder {
         Bvh bvh;
         const auto n = static_cast<std::uint32_t>(boxes.size());
         if (n == 0) return bvh;
-        Impl impl{boxes, {}, {}, {}, cfg, resolve_threads(cfg.threads), 0};
-        impl.centers = sanitize_centers(centers, boxes);
-        impl.ids.resize(n);
-        for (std::uint32_t i = 0; i < n; ++i) impl.ids[i] = i;
+        Impl impl{{}, {}, cfg, resolve_threads(cfg.threads), 0};
+        {
+            const std::vector<vec3> c = sanitize_centers(centers, boxes);
+            impl.refs.resize(n);
+            parallel_for(n, impl.threads, [&](std::size_t i) {
+                impl.refs[i] = {boxes[i], c[i], static_cast<std::uint32_t>(i)};
+            });
+        }
         impl.tmp.resize(2 * std::size_t(n) - 1);
         int fd = 1;
         while ((1u << (fd - 1)) < impl.threads) ++fd;
         impl.fork_depth = impl.threads > 1 ? fd + 1 : 0;
-        impl.node(0, 1, 0, n, 0);
+        AABB box, cbox;
+        impl.bounds(0, n, box, cbox);
+        impl.node(0, 1, 0, n, 0, box, cbox);
         bvh.nodes = detail::compact_preorder(impl.tmp);
-        bvh.prim_ids = std::move(impl.ids);
+        bvh.prim_ids.resize(n);
+        for (std::uint32_t i = 0; i < n; ++i) bvh.prim_ids[i] = impl.refs[i].id;
         return bvh;
     }
 
@@ -91,10 +103,16 @@ private:
         std::uint32_t count = 0;
     };
 
+    /// What the builder partitions: a primitive's box, centroid and index,
+    /// kept together so each pass streams through memory.
+    struct Ref {
+        AABB box;
+        vec3 c;
+        std::uint32_t id;
+    };
+
     struct Impl {
-        std::span<const AABB> boxes;
-        std::vector<vec3> centers;
-        std::vector<std::uint32_t> ids;
+        std::vector<Ref> refs;
         std::vector<Node> tmp;
         Config cfg;
         unsigned threads;
@@ -105,8 +123,8 @@ private:
         void bounds(std::uint32_t b, std::uint32_t e, AABB& box, AABB& cbox) const {
             auto pass = [&](std::size_t lo, std::size_t hi, AABB& bx, AABB& cb) {
                 for (std::size_t i = lo; i < hi; ++i) {
-                    bx.grow(boxes[ids[i]]);
-                    cb.grow(centers[ids[i]]);
+                    bx.grow(refs[i].box);
+                    cb.grow(refs[i].c);
                 }
             };
             const std::size_t n = e - b;
@@ -139,13 +157,14 @@ private:
             const int nb = bn.nb;
             auto pass = [&](std::size_t lo, std::size_t hi, Bin* dst) {
                 for (std::size_t i = lo; i < hi; ++i) {
-                    const std::uint32_t id = ids[i];
-                    const vec3& c = centers[id];
-                    for (int a = 0; a < 3; ++a) {
-                        Bin& bb = dst[a * nb + bn.index(c, a)];
-                        bb.box.grow(boxes[id]);
-                        ++bb.count;
-                    }
+                    const vec3& c = refs[i].c;
+                    const AABB& bx = refs[i].box;
+                    Bin& bxn = dst[bn.index(c, 0)];
+                    Bin& byn = dst[nb + bn.index(c, 1)];
+                    Bin& bzn = dst[2 * nb + bn.index(c, 2)];
+                    bxn.box.grow(bx), ++bxn.count;
+                    byn.box.grow(bx), ++byn.count;
+                    bzn.box.grow(bx), ++bzn.count;
                 }
             };
             out.assign(3 * nb, Bin{});
@@ -166,6 +185,49 @@ private:
                 }
         }
 
+        static constexpr std::uint32_t kSweepMax = 16;
+
+        /// Sorts refs[b, e) by centroid on `axis`, ties by primitive index.
+        void sort_axis(std::uint32_t b, std::uint32_t e, int axis) {
+            std::sort(refs.begin() + b, refs.begin() + e, [axis](const Ref& x, const Ref& y) {
+                return x.c[axis] < y.c[axis] || (x.c[axis] == y.c[axis] && x.id < y.id);
+            });
+        }
+
+        /// Axis whose sorted order gives the cheapest SAH split of a small
+        /// node (-1 never happens for n >= 2; kept for symmetry).
+        int sweep(std::uint32_t b, std::uint32_t e) {
+            const std::uint32_t n = e - b;
+            float best = kInf;
+            int best_axis = -1;
+            for (int a = 0; a < 3; ++a) {
+                sort_axis(b, e, a);
+                float rarea[kSweepMax];
+                AABB acc;
+                for (std::uint32_t k = n - 1; k > 0; --k) {
+                    acc.grow(refs[b + k].box);
+                    rarea[k] = acc.half_area();
+                }
+                acc = AABB{};
+                for (std::uint32_t k = 1; k < n; ++k) {
+                    acc.grow(refs[b + k - 1].box);
+                    const float c = acc.half_area() * float(k) + rarea[k] * float(n - k);
+                    if (c < best) best = c, best_axis = a;
+                }
+            }
+            return best_axis;
+        }
+
+        /// Median split on `axis` (ties by primitive index: the result depends
+        /// on the set of primitives only).
+        std::uint32_t median(std::uint32_t b, std::uint32_t e, int axis) {
+            const std::uint32_t mid = b + (e - b) / 2;
+            std::nth_element(refs.begin() + b, refs.begin() + mid, refs.begin() + e, [axis](const Ref& x, const Ref& y) {
+                return x.c[axis] < y.c[axis] || (x.c[axis] == y.c[axis] && x.id < y.id);
+            });
+            return mid;
+        }
+
         void make_leaf(std::uint32_t node, std::uint32_t b, std::uint32_t e, const AABB& box) {
             Node& nd = tmp[node];
             nd.box = box;
@@ -173,50 +235,91 @@ private:
             nd.count = e - b;
         }
 
-        void node(std::uint32_t node, std::uint32_t desc, std::uint32_t b, std::uint32_t e, int depth) {
+        /// Scratch for one node's binning, reused by every node on a thread
+        /// (a node is done with its bins before it recurses).
+        struct Scratch {
+            std::vector<Bin> bins;
+            std::vector<float> rarea;
+            std::vector<std::uint32_t> rcount;
+        };
+        static Scratch& scratch() {
+            thread_local Scratch s;
+            return s;
+        }
+
+        /// Builds the subtree of ids[b, e) into tmp[node]; `box`/`cbox` are the
+        /// bounds of the primitives' boxes and centroids (from the parent's
+        /// partition pass).
+        void node(std::uint32_t node, std::uint32_t desc, std::uint32_t b, std::uint32_t e, int depth,
+                  const AABB& box, const AABB& cbox) {
             const std::uint32_t n = e - b;
-            AABB box, cbox;
-            bounds(b, e, box, cbox);
             if (n <= std::max(1u, cfg.min_leaf_size)) return make_leaf(node, b, e, box);
 
             std::uint32_t mid = 0;
             const vec3 ext = cbox.extent();
             const int widest = max_axis(ext);
+            AABB lbox, lcbox, rbox, rcbox;
+            bool have_bounds = false;
             if (depth >= kMedianDepth) {
-                mid = detail::median_partition(ids, b, e, centers, widest);
+                mid = median(b, e, widest);
+            } else if (n <= kSweepMax) {
+                // small node: exact SAH over all n-1 splits of each axis' sorted order
+                const int best_axis = sweep(b, e);
+                float best = kInf;
+                std::uint32_t best_k = 0;
+                if (best_axis >= 0) {
+                    sort_axis(b, e, best_axis);
+                    float rarea[kSweepMax];
+                    AABB acc;
+                    for (std::uint32_t k = n - 1; k > 0; --k) {
+                        acc.grow(refs[b + k].box);
+                        rarea[k] = acc.half_area();
+                    }
+                    acc = AABB{};
+                    for (std::uint32_t k = 1; k < n; ++k) {
+                        acc.grow(refs[b + k - 1].box);
+                        const float c = acc.half_area() * float(k) + rarea[k] * float(n - k);
+                        if (c < best) best = c, best_k = k;
+                    }
+                }
+                const float sa = box.half_area();
+                const float split_cost = cfg.traversal_cost * sa + cfg.intersection_cost * best;
+                if (n <= cfg.max_leaf_size && cfg.intersection_cost * sa * float(n) <= split_cost)
+                    return make_leaf(node, b, e, box);
+                mid = best_axis >= 0 ? b + best_k : median(b, e, widest);
             } else if (!(ext[widest] > 0.0f)) {
                 // all centroids coincide: nothing to bin
                 if (n <= cfg.max_leaf_size) return make_leaf(node, b, e, box);
-                mid = detail::median_partition(ids, b, e, centers, 0);
+                mid = median(b, e, 0);
             } else {
                 const int nb = static_cast<int>(cfg.bins);
                 Binner bn{cbox.min, vec3(0.0f), nb};
                 for (int a = 0; a < 3; ++a)
                     bn.scale[a] = ext[a] > 0.0f ? static_cast<float>(nb) * (1.0f - 1e-6f) / ext[a] : 0.0f;
-                std::vector<Bin> bins;
-                bin(b, e, bn, bins);
+                Scratch& sc = scratch();
+                bin(b, e, bn, sc.bins);
+                sc.rarea.resize(nb);
+                sc.rcount.resize(nb);
                 float best = kInf;
                 int best_axis = -1, best_split = 0;
-                std::vector<float> rarea(nb);
-                std::vector<std::uint32_t> rcount(nb);
                 for (int a = 0; a < 3; ++a) {
                     if (!(ext[a] > 0.0f)) continue;
-                    const Bin* ab = bins.data() + a * nb;
+                    const Bin* ab = sc.bins.data() + a * nb;
                     AABB acc;
                     std::uint32_t cnt = 0;
                     for (int k = nb - 1; k > 0; --k) {
                         acc.grow(ab[k].box);
                         cnt += ab[k].count;
-                        rarea[k] = acc.half_area();
-                        rcount[k] = cnt;
+                        sc.rarea[k] = acc.half_area();
+                        sc.rcount[k] = cnt;
                     }
                     acc = AABB{};
                     cnt = 0;
                     for (int k = 1; k < nb; ++k) {
                         acc.grow(ab[k - 1].box);
                         cnt += ab[k - 1].count;
-                        if (cnt == 0 || rcount[k] == 0) continue;
-                        const float c = acc.half_area() * float(cnt) + rarea[k] * float(rcount[k]);
+                        if (cnt == 0 || sc.rcount[k] == 0) continue;
+                        const float c = acc.half_area() * float(cnt) + sc.rarea[k] * float(sc.rcount[k]);
                         if (c < best) {
                             best = c;
                             best_axis = a;
@@ -230,14 +333,34 @@ private:
                 if (n <= cfg.max_leaf_size && (best_axis < 0 || leaf_cost <= split_cost))
                     return make_leaf(node, b, e, box);
                 if (best_axis < 0) {
-                    mid = detail::median_partition(ids, b, e, centers, widest);
+                    mid = median(b, e, widest);
                 } else {
-                    auto it = std::partition(ids.begin() + b, ids.begin() + e, [&](std::uint32_t id) {
-                        return bn.index(centers[id], best_axis) < best_split;
-                    });
-                    mid = static_cast<std::uint32_t>(it - ids.begin());
-                    if (mid == b || mid == e) mid = detail::median_partition(ids, b, e, centers, widest);
+                    // partition, accumulating both sides' bounds on the way
+                    std::uint32_t i = b, j = e;
+                    while (i < j) {
+                        const Ref& r = refs[i];
+                        if (bn.index(r.c, best_axis) < best_split) {
+                            lbox.grow(r.box);
+                            lcbox.grow(r.c);
+                            ++i;
+                        } else {
+                            --j;
+                            rbox.grow(r.box);
+                            rcbox.grow(r.c);
+                            std::swap(refs[i], refs[j]);
+                        }
+                    }
+                    mid = i;
+                    have_bounds = true;
+                    if (mid == b || mid == e) {
+                        mid = median(b, e, widest);
+                        have_bounds = false;
+                    }
                 }
+            }
+            if (!have_bounds) {
+                bounds(b, mid, lbox, lcbox);
+                bounds(mid, e, rbox, rcbox);
             }
             Node& nd = tmp[node];
             nd.box = box;
@@ -247,8 +370,8 @@ private:
             const std::uint32_t left_desc = desc + 2, right_desc = desc + 2 + (2 * nl - 2);
             fork_join(
                 depth < fork_depth && n >= cfg.parallel_threshold,
-                [&] { this->node(desc, left_desc, b, mid, depth + 1); },
-                [&] { this->node(desc + 1, right_desc, mid, e, depth + 1); });
+                [&] { this->node(desc, left_desc, b, mid, depth + 1, lbox, lcbox); },
+                [&] { this->node(desc + 1, right_desc, mid, e, depth + 1, rbox, rcbox); });
         }
     };
 };

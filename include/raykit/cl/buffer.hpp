@@ -1,0 +1,85 @@
+// raykit/cl/buffer.hpp — typed device buffers.
+//
+//   Buffer<Ray> rays(dev, host_rays);          // allocate + upload
+//   Buffer<Hit> hits(dev, host_rays.size());   // allocate only
+//   std::vector<Hit> out = hits.read(dev);     // blocking download
+//
+// T must be trivially copyable and have the same layout on the device (the
+// crossing structs are checked in raykit/cl/layout.hpp). An empty buffer
+// still allocates one element, since OpenCL has no zero-sized buffers;
+// size() reports the element count asked for.
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <stdexcept>
+#include <type_traits>
+#include <vector>
+
+#include "raykit/cl/device.hpp"
+
+namespace raykit::cl {
+
+template <class T>
+class Buffer {
+    static_assert(std::is_trivially_copyable_v<T>, "device buffers hold trivially copyable types");
+
+public:
+    Buffer() = default;
+    Buffer(Device& dev, std::size_t count, cl_mem_flags flags = CL_MEM_READ_WRITE) { allocate(dev, count, flags); }
+    Buffer(Device& dev, std::span<const T> data, cl_mem_flags flags = CL_MEM_READ_WRITE) {
+        allocate(dev, data.size(), flags);
+        write(dev, data);
+    }
+    Buffer(Device& dev, const std::vector<T>& data, cl_mem_flags flags = CL_MEM_READ_WRITE)
+        : Buffer(dev, std::span<const T>(data), flags) {}
+
+    /// (Re)allocates for `count` elements; contents are undefined.
+    void allocate(Device& dev, std::size_t count, cl_mem_flags flags = CL_MEM_READ_WRITE) {
+        cl_int err = CL_SUCCESS;
+        const std::size_t n = count == 0 ? 1 : count;
+        buffer_ = ::cl::Buffer(dev.context(), flags, n * sizeof(T), nullptr, &err);
+        if (err != CL_SUCCESS)
+            throw Error("clCreateBuffer(" + std::to_string(n * sizeof(T)) + " bytes)", err);
+        size_ = count;
+        capacity_ = n;
+    }
+    /// Allocates only when the buffer holds fewer than `count` elements.
+    void reserve(Device& dev, std::size_t count, cl_mem_flags flags = CL_MEM_READ_WRITE) {
+        if (buffer_() == nullptr || capacity_ < count) allocate(dev, count, flags);
+        size_ = count;
+    }
+
+    /// Copies `data` to elements [offset, offset + data.size()).
+    void write(Device& dev, std::span<const T> data, std::size_t offset = 0, bool blocking = true) {
+        if (data.empty()) return;
+        if (offset + data.size() > capacity_) throw std::out_of_range("raykit::cl::Buffer::write past the end");
+        check(dev.queue().enqueueWriteBuffer(buffer_, blocking ? CL_TRUE : CL_FALSE, offset * sizeof(T),
+                                             data.size() * sizeof(T), data.data()),
+              "clEnqueueWriteBuffer");
+    }
+    /// Copies elements [offset, offset + out.size()) into `out` (blocking).
+    void read(Device& dev, std::span<T> out, std::size_t offset = 0) const {
+        if (out.empty()) return;
+        if (offset + out.size() > capacity_) throw std::out_of_range("raykit::cl::Buffer::read past the end");
+        check(dev.queue().enqueueReadBuffer(buffer_, CL_TRUE, offset * sizeof(T), out.size() * sizeof(T), out.data()),
+              "clEnqueueReadBuffer");
+    }
+    std::vector<T> read(Device& dev) const {
+        std::vector<T> out(size_);
+        read(dev, std::span<T>(out));
+        return out;
+    }
+
+    std::size_t size() const noexcept { return size_; }
+    std::size_t bytes() const noexcept { return size_ * sizeof(T); }
+    const ::cl::Buffer& handle() const noexcept { return buffer_; }
+    operator const ::cl::Buffer&() const noexcept { return buffer_; }  // NOLINT: pass as a kernel argument
+
+private:
+    ::cl::Buffer buffer_;
+    std::size_t size_ = 0;
+    std::size_t capacity_ = 0;
+};
+
+}  // namespace raykit::cl
