@@ -44,18 +44,23 @@ struct Watertight {
         d.kz = max_axis(ad);
         d.kx = d.kz == 2 ? 0 : d.kz + 1;
         d.ky = d.kx == 2 ? 0 : d.kx + 1;
-        if (r.dir[d.kz] < 0.0f) std::swap(d.kx, d.ky);
-        d.sx = r.dir[d.kx] / r.dir[d.kz];
-        d.sy = r.dir[d.ky] / r.dir[d.kz];
-        d.sz = 1.0f / r.dir[d.kz];
+        const float* dir = &r.dir.x;
+        if (dir[d.kz] < 0.0f) std::swap(d.kx, d.ky);
+        d.sx = dir[d.kx] / dir[d.kz];
+        d.sy = dir[d.ky] / dir[d.kz];
+        d.sz = 1.0f / dir[d.kz];
         return d;
     }
     static RAYKIT_INLINE bool intersect(const RayData& d, const vec3& p0, const vec3& p1,
                                         const vec3& p2, float tmin, float tmax, TriHit& out) noexcept {
         const vec3 A = p0 - d.org, B = p1 - d.org, C = p2 - d.org;
-        const float Ax = A[d.kx] - d.sx * A[d.kz], Ay = A[d.ky] - d.sy * A[d.kz];
-        const float Bx = B[d.kx] - d.sx * B[d.kz], By = B[d.ky] - d.sy * B[d.kz];
-        const float Cx = C[d.kx] - d.sx * C[d.kz], Cy = C[d.ky] - d.sy * C[d.kz];
+        // component access through pointers: run-time indices, no GLM debug check
+        const float* a = &A.x;
+        const float* b = &B.x;
+        const float* c = &C.x;
+        const float Ax = a[d.kx] - d.sx * a[d.kz], Ay = a[d.ky] - d.sy * a[d.kz];
+        const float Bx = b[d.kx] - d.sx * b[d.kz], By = b[d.ky] - d.sy * b[d.kz];
+        const float Cx = c[d.kx] - d.sx * c[d.kz], Cy = c[d.ky] - d.sy * c[d.kz];
         // Edge functions in double: a product of two floats is exact in double,
         // so each is rounded once, the same way in both triangles that share
         // the edge (watertight), even when the compiler fuses multiply-adds.
@@ -68,7 +73,7 @@ struct Watertight {
         const float U = static_cast<float>(Ud), V = static_cast<float>(Vd), W = static_cast<float>(Wd);
         const float det = static_cast<float>(detd);
         if (!(det != 0.0f)) return false;  // below float range: treat as degenerate
-        const float Az = d.sz * A[d.kz], Bz = d.sz * B[d.kz], Cz = d.sz * C[d.kz];
+        const float Az = d.sz * a[d.kz], Bz = d.sz * b[d.kz], Cz = d.sz * c[d.kz];
         const float T = U * Az + V * Bz + W * Cz;
         const float inv = 1.0f / det;
         const float t = T * inv;

@@ -48,7 +48,7 @@ Hit intersect_closest(const LeafTriangles& lt, const Bvh& bvh, const Ray& ray, S
     float tmax = ray.tmax;
     traverse<ClosestHit>(
         bvh, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float& tm) {
+        [&](std::uint32_t first, std::uint32_t count, float& tm) RAYKIT_LAMBDA_INLINE {
             bool found = false;
             for (std::uint32_t k = first; k < first + count; ++k) {
                 TriHit th;
@@ -74,7 +74,7 @@ bool intersect_any(const LeafTriangles& lt, const Bvh& bvh, const Ray& ray, Stat
     float tmax = ray.tmax;
     return traverse<AnyHit>(
         bvh, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float&) {
+        [&](std::uint32_t first, std::uint32_t count, float&) RAYKIT_LAMBDA_INLINE {
             for (std::uint32_t k = first; k < first + count; ++k) {
                 TriHit th;
                 if (Test::intersect(rd, v[3 * k], v[3 * k + 1], v[3 * k + 2], ray.tmin, ray.tmax, th)) return true;

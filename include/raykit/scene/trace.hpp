@@ -26,7 +26,7 @@ Hit intersect_closest(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stat
     float tmax = ray.tmax;
     traverse<ClosestHit>(
         bvh, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float& tm) {
+        [&](std::uint32_t first, std::uint32_t count, float& tm) RAYKIT_LAMBDA_INLINE {
             bool found = false;
             for (std::uint32_t k = first; k < first + count; ++k) {
                 const std::uint32_t p = ids[k];
@@ -54,7 +54,7 @@ bool intersect_any(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stats s
     float tmax = ray.tmax;
     return traverse<AnyHit>(
         bvh, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float&) {
+        [&](std::uint32_t first, std::uint32_t count, float&) RAYKIT_LAMBDA_INLINE {
             for (std::uint32_t k = first; k < first + count; ++k) {
                 const Triangle& t = tris[ids[k]];
                 TriHit th;
