@@ -194,12 +194,18 @@ private:
             });
         }
 
-        /// Axis whose sorted order gives the cheapest SAH split of a small
-        /// node (-1 never happens for n >= 2; kept for symmetry).
-        int sweep(std::uint32_t b, std::uint32_t e) {
+        struct SweepResult {
+            int axis = -1;
+            std::uint32_t split = 0;  ///< left child = the first `split` records
+            float cost = kInf;        ///< SA(L)·|L| + SA(R)·|R|, half areas
+        };
+
+        /// Exact SAH sweep of a small node: tries all n-1 splits of the
+        /// centroid order on each axis, and leaves refs[b, e) sorted on the
+        /// best axis.
+        SweepResult sweep(std::uint32_t b, std::uint32_t e) {
             const std::uint32_t n = e - b;
-            float best = kInf;
-            int best_axis = -1;
+            SweepResult best;
             for (int a = 0; a < 3; ++a) {
                 sort_axis(b, e, a);
                 float rarea[kSweepMax];
@@ -212,10 +218,11 @@ private:
                 for (std::uint32_t k = 1; k < n; ++k) {
                     acc.grow(refs[b + k - 1].box);
                     const float c = acc.half_area() * float(k) + rarea[k] * float(n - k);
-                    if (c < best) best = c, best_axis = a;
+                    if (c < best.cost) best = {a, k, c};
                 }
             }
-            return best_axis;
+            if (best.axis >= 0 && best.axis != 2) sort_axis(b, e, best.axis);
+            return best;
         }
 
         /// Median split on `axis` (ties by primitive index: the result depends
@@ -264,29 +271,12 @@ private:
                 mid = median(b, e, widest);
             } else if (n <= kSweepMax) {
                 // small node: exact SAH over all n-1 splits of each axis' sorted order
-                const int best_axis = sweep(b, e);
-                float best = kInf;
-                std::uint32_t best_k = 0;
-                if (best_axis >= 0) {
-                    sort_axis(b, e, best_axis);
-                    float rarea[kSweepMax];
-                    AABB acc;
-                    for (std::uint32_t k = n - 1; k > 0; --k) {
-                        acc.grow(refs[b + k].box);
-                        rarea[k] = acc.half_area();
-                    }
-                    acc = AABB{};
-                    for (std::uint32_t k = 1; k < n; ++k) {
-                        acc.grow(refs[b + k - 1].box);
-                        const float c = acc.half_area() * float(k) + rarea[k] * float(n - k);
-                        if (c < best) best = c, best_k = k;
-                    }
-                }
+                const SweepResult sw = sweep(b, e);
                 const float sa = box.half_area();
-                const float split_cost = cfg.traversal_cost * sa + cfg.intersection_cost * best;
+                const float split_cost = cfg.traversal_cost * sa + cfg.intersection_cost * sw.cost;
                 if (n <= cfg.max_leaf_size && cfg.intersection_cost * sa * float(n) <= split_cost)
                     return make_leaf(node, b, e, box);
-                mid = best_axis >= 0 ? b + best_k : median(b, e, widest);
+                mid = sw.axis >= 0 ? b + sw.split : median(b, e, widest);
             } else if (!(ext[widest] > 0.0f)) {
                 // all centroids coincide: nothing to bin
                 if (n <= cfg.max_leaf_size) return make_leaf(node, b, e, box);
