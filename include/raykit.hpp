@@ -5,7 +5,8 @@
 //   intersect/       slab test, triangle tests (Watertight default, MollerTrumbore, ThesisTest)
 //   bvh/             node layout, builders, SAH cost, validate, traverse, refit
 //   scene/           mesh, building a BVH over a mesh, closest/any-hit queries
-//   io/              OBJ/MTL loading, ParseError
+//   io/              OBJ/MTL and SMD loading, ParseError
+//   anim/            skeletons, keyframe interpolation, skinning
 // The OpenCL device path is separate: include raykit/cl.hpp.
 #pragma once
 
@@ -37,3 +38,7 @@
 #include "raykit/io/parse_error.hpp"
 #include "raykit/io/obj.hpp"
 #include "raykit/io/obj_write.hpp"
+#include "raykit/io/smd.hpp"
+#include "raykit/anim/skeleton.hpp"
+#include "raykit/anim/interpolate.hpp"
+#include "raykit/anim/skinning.hpp"
