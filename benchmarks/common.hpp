@@ -70,6 +70,9 @@ inline const std::vector<std::string>& ray_set_names() {
 inline std::filesystem::path bunny_path() {
     return std::filesystem::path(RAYKIT_SHARED_DATA_DIR) / "obj" / "stanford_bunny" / "stanford-bunny.obj";
 }
+inline std::filesystem::path thesis_scene_path() {
+    return std::filesystem::path(RAYKIT_SHARED_DATA_DIR) / "obj" / "thesis_scene" / "Scene.obj";
+}
 
 /// One scene: its mesh and what benchmarks derive from it, each made once.
 struct Scene {
@@ -96,12 +99,13 @@ inline const Scene* scene(const std::string& name) {
     if (auto it = cache.find(name); it != cache.end()) return it->second.get();
     auto s = std::make_unique<Scene>();
     s->name = name;
-    if (name == "bunny") {
-        if (!std::filesystem::exists(bunny_path())) {
+    if (name == "bunny" || name == "thesis") {
+        const std::filesystem::path p = name == "bunny" ? bunny_path() : thesis_scene_path();
+        if (!std::filesystem::exists(p)) {
             cache[name] = nullptr;
             return nullptr;
         }
-        s->mesh = raykit::load_obj(bunny_path());
+        s->mesh = raykit::load_obj(p);
     } else if (name == "torus100k") {
         s->mesh = raykit::make_bumpy_torus(100000);
     } else if (name == "torus1M") {
@@ -118,7 +122,7 @@ inline const Scene* scene(const std::string& name) {
 inline const Scene* scene_or_skip(benchmark::State& state, const std::string& name) {
     const Scene* s = scene(name);
     if (!s) {
-        const std::string msg = name + ": " + bunny_path().string() + " not found";
+        const std::string msg = name + ": " + (name == "thesis" ? thesis_scene_path() : bunny_path()).string() + " not found";
         state.SkipWithError(msg.c_str());
     }
     return s;

@@ -4,6 +4,8 @@
 //   raykit trace SCENE.obj RAYS.txt HITS.txt [--any-hit] [--test watertight|mt|thesis] [...]
 //   raykit check SCENE.obj [--rays N] [--seed S] [...]
 //   raykit generate torus|icosphere|soup OUT.obj [--tris N] [--seed S]
+//   raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler]
+//   raykit render SCENE.obj OUT.png [...]
 //
 // Every error ends with a one-line reason on stderr and a non-zero exit:
 // 2 for bad usage, 1 for anything else.
@@ -23,7 +25,11 @@
 #include "raykit.hpp"
 #include "raykit/io/obj.hpp"
 #include "raykit/io/obj_write.hpp"
+#include "raykit/scene/build_options.hpp"
 #include "raykit/scene/generate.hpp"
+
+#include "cli_render.hpp"
+#include "cli_skin.hpp"
 
 namespace {
 
@@ -35,15 +41,24 @@ struct UsageError : std::runtime_error {
 };
 
 constexpr const char* kUsage = R"(usage:
-  raykit info SCENE.obj [--builder NAME] [--leaf N] [--threads T] [--json]
+  raykit info SCENE.obj [--builder NAME] [--window W] [--axis A] [--metric M] [--radius R] [--leaf N] [--threads T] [--json]
   raykit trace SCENE.obj RAYS.txt HITS.txt [--builder NAME] [--any-hit] [--test watertight|mt|thesis] [--threads T]
   raykit check SCENE.obj [--rays N] [--seed S] [--builder NAME] [--test watertight|mt|thesis] [--threads T]
   raykit generate torus|icosphere|soup OUT.obj [--tris N] [--seed S]
+  raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu]
+  raykit render SCENE.obj OUT.png [--width W] [--height H] [--spp N] [--max-depth D] [--shader NAME]
+                [--camera EX EY EZ TX TY TZ] [--up UX UY UZ] [--fov DEG] [--light X Y Z R G B]... (raykit render alone lists all options)
 
-  --builder NAME   BVH builder: sah (binned SAH, default)
+  --builder NAME   BVH builder: sah (binned SAH, default), pairwise, sortaxis, ploc
   --leaf N         largest leaf (primitives), default 8
+  --window W       sortaxis: candidates per element, default 6
+  --axis A         sortaxis: x | longest | morton (default)
+  --metric M       pairwise, sortaxis: centre (default) | area
+  --radius R       ploc: neighbours searched each way, default 16
   --threads T      worker threads, 0 = all (default)
   --test NAME      ray/triangle test: watertight (default), mt (Moller-Trumbore), thesis
+skin: prints the skinned position of every triangle corner (triangles in file order), one "x y z" per line;
+      FRAME may be fractional; without ANIM, the bind pose.
 RAYS.txt: one ray per line, "ox oy oz dx dy dz tmin tmax" (tmax may be inf).
 HITS.txt: one line per ray, "prim t u v" ("-1 0 0 0" on a miss); with --any-hit "1" or "0".
 )";
@@ -90,28 +105,45 @@ struct Args {
     }
 };
 
-struct TreeOptions {
-    std::string builder = "sah";
-    unsigned leaf = 8;
-    unsigned threads = 0;
-};
+/// Options every command that builds a tree takes.
+const std::vector<std::string> kTreeFlags = {"--builder", "--leaf", "--threads", "--window", "--axis", "--metric",
+                                             "--radius"};
 
-TreeOptions tree_options(const Args& a) {
-    TreeOptions t;
-    t.builder = a.get("--builder", "sah");
-    t.leaf = a.number<unsigned>("--leaf", 8);
-    t.threads = a.number<unsigned>("--threads", 0);
-    if (t.builder != "sah") throw UsageError("unknown builder '" + t.builder + "' (known: sah)");
-    if (t.leaf < 1) throw UsageError("--leaf must be at least 1");
-    return t;
+std::vector<std::string> with_tree_flags(std::vector<std::string> v) {
+    v.insert(v.end(), kTreeFlags.begin(), kTreeFlags.end());
+    return v;
 }
 
-Bvh build_tree(const Mesh& mesh, const TreeOptions& t) {
-    BinnedSahBuilder::Config c;
-    c.max_leaf_size = t.leaf;
-    c.threads = t.threads;
-    return build_bvh<BinnedSahBuilder>(mesh, c);
+BuildOptions tree_options(const Args& a) {
+    BuildOptions o;
+    try {
+        o.builder = BuildOptions::parse_builder(a.get("--builder", "sah"));
+        o.axis = BuildOptions::parse_axis(a.get("--axis", "morton"));
+        o.metric = BuildOptions::parse_metric(a.get("--metric", "centre"));
+    } catch (const std::invalid_argument& e) {
+        throw UsageError(e.what());
+    }
+    o.max_leaf_size = a.number<unsigned>("--leaf", 8);
+    o.threads = a.number<unsigned>("--threads", 0);
+    o.window = a.number<unsigned>("--window", 6);
+    o.radius = a.number<unsigned>("--radius", 16);
+    if (o.max_leaf_size < 1) throw UsageError("--leaf must be at least 1");
+    if (o.window < 1) throw UsageError("--window must be at least 1");
+    if (o.radius < 1 || o.radius > 1024) throw UsageError("--radius must be in 1..1024");
+    return o;
 }
+
+std::string describe(const BuildOptions& o) {
+    std::string s = BuildOptions::name(o.builder);
+    if (o.builder == BuildOptions::Builder::sortaxis)
+        s += std::string(" window ") + std::to_string(o.window) + " axis " + BuildOptions::name(o.axis) + " metric " +
+             BuildOptions::name(o.metric);
+    if (o.builder == BuildOptions::Builder::pairwise) s += std::string(" metric ") + BuildOptions::name(o.metric);
+    if (o.builder == BuildOptions::Builder::ploc) s += " radius " + std::to_string(o.radius);
+    return s;
+}
+
+Bvh build_tree(const Mesh& mesh, const BuildOptions& o) { return build_bvh(MeshView(mesh), o); }
 
 Mesh load_scene(const std::string& path) {
     Mesh m = load_obj(path);
@@ -120,9 +152,9 @@ Mesh load_scene(const std::string& path) {
 }
 
 int cmd_info(int argc, char** argv) {
-    Args a(argc, argv, 2, {"--builder", "--leaf", "--threads"}, {"--json"});
+    Args a(argc, argv, 2, with_tree_flags({}), {"--json"});
     if (a.pos.size() != 1) throw UsageError("info takes one SCENE.obj");
-    const TreeOptions t = tree_options(a);
+    const BuildOptions t = tree_options(a);
     const Mesh mesh = load_scene(a.pos[0]);
     const auto t0 = Clock::now();
     const Bvh bvh = build_tree(mesh, t);
@@ -131,16 +163,17 @@ int cmd_info(int argc, char** argv) {
     if (a.has("--json")) {
         std::printf(
             "{\"file\": \"%s\", \"triangles\": %zu, \"vertices\": %zu, \"materials\": %zu, \"builder\": \"%s\", "
-            "\"max_leaf_size\": %u, \"nodes\": %zu, \"leaves\": %zu, \"depth\": %d, \"sah_cost\": %.6f, "
-            "\"build_ms\": %.3f, \"memory_bytes\": %zu}\n",
-            a.pos[0].c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(), t.builder.c_str(),
-            t.leaf, bvh.nodes.size(), bvh.leaf_count(), bvh.depth(), cost, ms, bvh.memory_bytes());
+            "\"settings\": \"%s\", \"max_leaf_size\": %u, \"nodes\": %zu, \"leaves\": %zu, \"depth\": %d, "
+            "\"sah_cost\": %.6f, \"build_ms\": %.3f, \"memory_bytes\": %zu}\n",
+            a.pos[0].c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(),
+            BuildOptions::name(t.builder), describe(t).c_str(), t.max_leaf_size, bvh.nodes.size(), bvh.leaf_count(),
+            bvh.depth(), cost, ms, bvh.memory_bytes());
     } else {
         std::printf("file        %s\ntriangles   %zu\nvertices    %zu\nmaterials   %zu\nbuilder     %s (max leaf %u)\n"
                     "nodes       %zu\nleaves      %zu\ndepth       %d\nSAH cost    %.4f\nbuild       %.2f ms\n"
                     "memory      %zu bytes\n",
                     a.pos[0].c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(),
-                    t.builder.c_str(), t.leaf, bvh.nodes.size(), bvh.leaf_count(), bvh.depth(), cost, ms,
+                    describe(t).c_str(), t.max_leaf_size, bvh.nodes.size(), bvh.leaf_count(), bvh.depth(), cost, ms,
                     bvh.memory_bytes());
     }
     return 0;
@@ -210,9 +243,9 @@ std::vector<Ray> read_rays(const std::string& file) {
 }
 
 int cmd_trace(int argc, char** argv) {
-    Args a(argc, argv, 2, {"--builder", "--leaf", "--threads", "--test"}, {"--any-hit"});
+    Args a(argc, argv, 2, with_tree_flags({"--test"}), {"--any-hit"});
     if (a.pos.size() != 3) throw UsageError("trace takes SCENE.obj RAYS.txt HITS.txt");
-    const TreeOptions t = tree_options(a);
+    const BuildOptions t = tree_options(a);
     const TestKind tk = test_kind(a);
     const Mesh mesh = load_scene(a.pos[0]);
     const std::vector<Ray> rays = read_rays(a.pos[1]);
@@ -249,9 +282,9 @@ int cmd_trace(int argc, char** argv) {
 }
 
 int cmd_check(int argc, char** argv) {
-    Args a(argc, argv, 2, {"--builder", "--leaf", "--threads", "--test", "--rays", "--seed"}, {});
+    Args a(argc, argv, 2, with_tree_flags({"--test", "--rays", "--seed"}), {});
     if (a.pos.size() != 1) throw UsageError("check takes one SCENE.obj");
-    const TreeOptions t = tree_options(a);
+    const BuildOptions t = tree_options(a);
     const TestKind tk = test_kind(a);
     const auto n = a.number<std::size_t>("--rays", 2000);
     const auto seed = a.number<std::uint64_t>("--seed", 1);
@@ -336,6 +369,22 @@ int main(int argc, char** argv) {
         if (cmd == "trace") return cmd_trace(argc, argv);
         if (cmd == "check") return cmd_check(argc, argv);
         if (cmd == "generate") return cmd_generate(argc, argv);
+        if (cmd == "render") {
+            try {
+                return raykit_cli_render(argc, argv, 2);
+            } catch (const RaykitCliRenderUsageError& e) {
+                std::fputs(raykit_cli_render_usage(), stderr);
+                std::fprintf(stderr, "raykit: error: %s\n", e.what());
+                return 2;
+            }
+        }
+        if (cmd == "skin") {
+            try {
+                return raykit_cli_skin(argc, argv, 2);
+            } catch (const raykit_cli::SkinUsageError& e) {
+                throw UsageError(e.what());
+            }
+        }
         if (cmd == "--help" || cmd == "-h" || cmd == "help") {
             std::fputs(kUsage, stdout);
             return 0;

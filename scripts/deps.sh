@@ -5,6 +5,7 @@ set -euo pipefail
 pkgs=(
   cmake g++ make pkg-config
   libglm-dev                      # math
+  libstb-dev                      # image load/save (renderer)
   libgtest-dev libbenchmark-dev   # tests, benchmarks
   libtinyobjloader-dev            # test oracle for the OBJ loader
   assimp-testmodels               # real OBJ/SMD files for the loader tests

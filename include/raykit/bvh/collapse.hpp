@@ -3,30 +3,34 @@
 //
 // A bottom-up builder records only the merge topology, as a detail::MergeTree:
 // node ids 0..n-1 are the primitives, and every merge appends one inner node
-// (id n + k) with two child ids. Merges come in batches (a level, an
-// iteration); a batch's nodes have children only among the primitives and the
-// earlier batches. detail::finish_bottom_up then turns that into a Bvh:
+// (id n + k) with two child ids; every node but the last root is merged
+// exactly once. Merges come in batches (a level, an iteration): a batch's
+// nodes have children only among the primitives and earlier batches.
+// detail::finish_bottom_up then turns that into a Bvh:
 //
-//   1. Depth limit. A node whose subtree would end deeper than
-//      RAYKIT_BVH_MAX_DEPTH is rebuilt with median splits (see the proof at
-//      detail::limit_depth). Skipped when the batch count already bounds the
-//      height (pairwise and sort-by-axis halve the element count per level).
+//   1. Depth limit (detail::limit_depth). Subtrees that would end deeper than
+//      RAYKIT_BVH_MAX_DEPTH are rebuilt with median splits (proof at the
+//      function). A node of batch b has height ≤ b + 1, so this only runs
+//      when there are more batches than RAYKIT_BVH_MAX_DEPTH and the tree is
+//      actually too deep (PLOC on chain-like inputs; pairwise and
+//      sort-by-axis halve the element count per level and never need it).
 //   2. Leaf collapse, bottom-up over the real primitive boxes: a subtree of
 //      n ≤ max_leaf_size primitives becomes one leaf when
 //        Ci·SA·n ≤ Ct·SA + cost(left) + cost(right)
-//      (its SAH cost with the children's best costs, SA = half surface area).
-//   3. Output in depth-first pre-order with children side by side, exactly
-//      the layout detail::compact_preorder produces (written directly, the
-//      large subtrees on separate threads); a leaf's primitives are
-//      contiguous in prim_ids, in left-to-right order of the merge tree.
-//
-// Everything here is deterministic: per-node work does not depend on how the
-// nodes are split among threads.
+//      (its SAH cost, with the children's best costs; SA = half area).
+//      Collapsing only removes levels, so the depth bound still holds.
+//   3. Output in depth-first pre-order with children side by side: exactly
+//      the layout detail::compact_preorder produces, written directly, batch
+//      by batch from the root down (after a depth cut: recursively). A
+//      leaf's primitives are contiguous in prim_ids, in the merge tree's
+//      left-to-right order.
+// Steps 2 and 3 split large batches among threads; every node's result
+// depends only on the tree, so the output is the same for any thread count.
 //
 // Also here (raykit::detail): centroid sanitizing, "working" boxes (finite,
 // non-empty stand-ins for empty or non-finite primitive boxes, used for
 // decisions only; the output boxes are always the real ones), Morton codes
-// and a stable parallel LSD radix sort.
+// and stable parallel LSD radix sorts.
 #pragma once
 
 #include <algorithm>
@@ -35,7 +39,10 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <new>
 #include <span>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "raykit/bvh/depth.hpp"
@@ -56,6 +63,75 @@ namespace detail {
 
 inline constexpr float kFloatMax = std::numeric_limits<float>::max();
 
+/// Array storage that is not initialised: large scratch arrays are first
+/// touched (and page-faulted) by the threads that fill them instead of by
+/// one thread zeroing them. For trivially copyable, implicit-lifetime
+/// element types; every element is written before it is read.
+template <class T>
+class RawArray {
+    static_assert(std::is_trivially_copyable_v<T> && std::is_trivially_destructible_v<T>);
+
+public:
+    RawArray() = default;
+    explicit RawArray(std::size_t n) { resize(n); }
+    RawArray(const RawArray& o) : RawArray(o.n_) {
+        if (n_) std::memcpy(static_cast<void*>(p_), o.p_, n_ * sizeof(T));
+    }
+    RawArray(RawArray&& o) noexcept { swap(o); }
+    RawArray& operator=(RawArray o) noexcept {
+        swap(o);
+        return *this;
+    }
+    ~RawArray() { release(); }
+    void swap(RawArray& o) noexcept {
+        std::swap(p_, o.p_);
+        std::swap(n_, o.n_);
+        std::swap(cap_, o.cap_);
+    }
+
+    /// Keeps the first min(size, n) elements; new ones are uninitialised.
+    void resize(std::size_t n) {
+        if (n > cap_) reserve(std::max(n, cap_ + cap_ / 2));
+        n_ = n;
+    }
+    void reserve(std::size_t cap) {
+        if (cap <= cap_) return;
+        T* q = static_cast<T*>(::operator new(cap * sizeof(T), std::align_val_t(alignof(T))));
+        if (n_) std::memcpy(static_cast<void*>(q), p_, n_ * sizeof(T));
+        release();
+        p_ = q;
+        cap_ = cap;
+    }
+    void push_back(const T& v) {
+        if (n_ == cap_) reserve(std::max<std::size_t>(16, cap_ * 2));
+        p_[n_++] = v;
+    }
+    void clear() noexcept { n_ = 0; }
+
+    T* data() noexcept { return p_; }
+    const T* data() const noexcept { return p_; }
+    std::size_t size() const noexcept { return n_; }
+    bool empty() const noexcept { return n_ == 0; }
+    T& operator[](std::size_t i) noexcept { return p_[i]; }
+    const T& operator[](std::size_t i) const noexcept { return p_[i]; }
+    T& back() noexcept { return p_[n_ - 1]; }
+    const T& back() const noexcept { return p_[n_ - 1]; }
+    T* begin() noexcept { return p_; }
+    T* end() noexcept { return p_ + n_; }
+    const T* begin() const noexcept { return p_; }
+    const T* end() const noexcept { return p_ + n_; }
+    operator std::span<const T>() const noexcept { return {p_, n_}; }  // NOLINT implicit
+
+private:
+    void release() noexcept {
+        if (p_) ::operator delete(static_cast<void*>(p_), cap_ * sizeof(T), std::align_val_t(alignof(T)));
+        p_ = nullptr;
+        cap_ = 0;
+    }
+    T* p_ = nullptr;
+    std::size_t n_ = 0, cap_ = 0;
+};
+
 /// Element count from which per-element passes run on several threads.
 inline constexpr std::size_t kBottomUpParallelPass = 16384;
 
@@ -64,33 +140,69 @@ inline std::size_t pass_chunks(std::size_t m) noexcept {
     return m < kBottomUpParallelPass ? 1 : std::min<std::size_t>(64, m / (kBottomUpParallelPass / 4));
 }
 
-/// Bounds of a set of points (finite ones only; NaN is ignored by grow, ±inf
-/// are skipped explicitly). Exact for any chunking.
-inline AABB finite_point_bounds(std::span<const vec3> pts, unsigned threads) {
+/// fn(i) for i in [0, m): on `threads` threads when m is large enough to
+/// pay for starting them. For per-element work only (the result must not
+/// depend on the split).
+template <class Fn>
+void par_for(std::size_t m, unsigned threads, Fn&& fn) {
+    if (threads <= 1 || m < kBottomUpParallelPass) {
+        for (std::size_t i = 0; i < m; ++i) fn(i);
+        return;
+    }
+    parallel_chunks(m, threads, threads, [&](std::size_t, std::size_t lo, std::size_t hi) {
+        for (std::size_t i = lo; i < hi; ++i) fn(i);
+    });
+}
+
+/// Bounds of a set of points (finite ones only) and whether any was not
+/// finite. Exact for any chunking.
+inline AABB finite_point_bounds(std::span<const vec3> pts, unsigned threads, bool* any_bad = nullptr) {
     const std::size_t chunks = pass_chunks(pts.size());
     std::vector<AABB> part(chunks);
+    std::vector<std::uint8_t> bad(chunks, 0);
     parallel_chunks(pts.size(), chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
         AABB b;
-        for (std::size_t i = lo; i < hi; ++i)
+        bool nb = false;
+        for (std::size_t i = lo; i < hi; ++i) {
             if (is_finite(pts[i])) b.grow(pts[i]);
+            else nb = true;
+        }
         part[c] = b;
+        bad[c] = nb;
     });
     AABB all;
     for (const AABB& b : part) all.grow(b);
+    if (any_bad) *any_bad = std::find(bad.begin(), bad.end(), 1) != bad.end();
     return all;
 }
 
-/// Copies the centroids; non-finite ones (NaN triangles) go to the centre of
-/// the finite ones, so that sorting, Morton codes and distances never see a
-/// NaN (the same rule as BinnedSahBuilder).
-inline std::vector<vec3> sanitize_centers(std::span<const vec3> centers, unsigned threads) {
-    std::vector<vec3> c(centers.begin(), centers.end());
-    const AABB all = finite_point_bounds(c, threads);
-    const vec3 fill = all.is_empty() ? vec3(0.0f) : all.center();
-    parallel_for(c.size(), threads, [&](std::size_t i) {
-        if (!is_finite(c[i])) c[i] = fill;
-    });
-    return c;
+/// The centroids a builder works with: the caller's, or, when some are not
+/// finite (NaN triangles), a copy where those sit at the centre of the
+/// finite ones, so that sorting, Morton codes and distances never see a NaN
+/// (the same rule as BinnedSahBuilder).
+struct SanitizedCenters {
+    std::vector<vec3> copy;       ///< used only when an input centroid was not finite
+    std::span<const vec3> view;   ///< the centroids to use
+    AABB bounds;                  ///< bounds of the finite input centroids (empty if none)
+    const vec3& operator[](std::size_t i) const noexcept { return view[i]; }
+    std::size_t size() const noexcept { return view.size(); }
+};
+
+inline SanitizedCenters sanitize_centers(std::span<const vec3> centers, unsigned threads) {
+    SanitizedCenters s;
+    bool bad = false;
+    s.bounds = finite_point_bounds(centers, threads, &bad);
+    s.view = centers;
+    if (bad) {
+        s.copy.assign(centers.begin(), centers.end());
+        const vec3 fill = s.bounds.is_empty() ? vec3(0.0f) : s.bounds.center();
+        par_for(s.copy.size(), threads, [&](std::size_t i) {
+            if (!is_finite(s.copy[i])) s.copy[i] = fill;
+        });
+        s.view = s.copy;
+        if (s.bounds.is_empty()) s.bounds = AABB::of_point(fill);
+    }
+    return s;
 }
 
 inline bool box_is_finite(const AABB& b) noexcept { return is_finite(b.min) && is_finite(b.max); }
@@ -146,20 +258,40 @@ struct MortonQuantizer {
         };
         return spread_bits21(q(0)) << 2 | spread_bits21(q(1)) << 1 | spread_bits21(q(2));
     }
+    /// 30-bit code (10 bits per axis, the same cube cut into 1024 cells per side).
+    std::uint32_t code30(const vec3& p) const noexcept {
+        auto q = [&](int a) -> std::uint32_t {
+            float f = (p[a] - lo[a]) * (scale * (1.0f / 2048.0f));
+            f = f > 0.0f ? f : 0.0f;
+            f = f < 1023.0f ? f : 1023.0f;
+            std::uint32_t x = static_cast<std::uint32_t>(f);
+            x = (x | x << 16) & 0x030000FFu;
+            x = (x | x << 8) & 0x0300F00Fu;
+            x = (x | x << 4) & 0x030C30C3u;
+            x = (x | x << 2) & 0x09249249u;
+            return x;
+        };
+        return q(0) << 2 | q(1) << 1 | q(2);
+    }
 };
+
+/// Chunk count for a radix-sort pass. A stable sort has one result, so the
+/// chunking may follow the thread count.
+inline std::size_t sort_chunks(std::size_t m, unsigned threads) noexcept {
+    return threads <= 1 || m < kBottomUpParallelPass ? 1 : std::min<std::size_t>(64, 2 * std::size_t(threads));
+}
 
 /// Stable LSD radix sort of (keys, vals) by the low `bits` bits of the keys,
 /// 11 bits per pass; passes where every key has the same digit are skipped.
-/// The result is unique (stability), whatever the thread count.
 template <class Key>
-void radix_sort(std::vector<Key>& keys, std::vector<std::uint32_t>& vals, int bits, unsigned threads) {
+void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, unsigned threads) {
     constexpr int kDigit = 11;
     constexpr std::size_t kBins = std::size_t(1) << kDigit;
     const std::size_t m = keys.size();
     if (m < 2) return;
-    std::vector<Key> k2(m);
-    std::vector<std::uint32_t> v2(m);
-    const std::size_t chunks = threads > 1 ? pass_chunks(m) : 1;
+    RawArray<Key> k2(m);
+    RawArray<std::uint32_t> v2(m);
+    const std::size_t chunks = sort_chunks(m, threads);
     std::vector<std::uint32_t> hist(chunks * kBins);
     for (int shift = 0; shift < bits; shift += kDigit) {
         parallel_chunks(m, chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
@@ -192,17 +324,54 @@ void radix_sort(std::vector<Key>& keys, std::vector<std::uint32_t>& vals, int bi
     }
 }
 
+/// Stable LSD radix sort of 64-bit words by their bits [lo_bit, hi_bit)
+/// (typically a 32-bit key above a 32-bit payload), 11 bits per pass;
+/// passes where every word has the same digit are skipped. `scratch` may be
+/// reused between calls.
+inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, unsigned threads,
+                             RawArray<std::uint64_t>& scratch) {
+    constexpr int kDigit = 11;
+    constexpr std::size_t kBins = std::size_t(1) << kDigit;
+    const std::size_t m = a.size();
+    if (m < 2) return;
+    scratch.resize(m);
+    const std::size_t chunks = sort_chunks(m, threads);
+    std::vector<std::uint32_t> hist(chunks * kBins);
+    for (int shift = lo_bit; shift < hi_bit; shift += kDigit) {
+        parallel_chunks(m, chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+            std::uint32_t* h = hist.data() + c * kBins;
+            std::fill(h, h + kBins, 0u);
+            for (std::size_t i = lo; i < hi; ++i) ++h[(a[i] >> shift) & (kBins - 1)];
+        });
+        const std::size_t d0 = (a[0] >> shift) & (kBins - 1);
+        std::size_t same = 0;
+        for (std::size_t c = 0; c < chunks; ++c) same += hist[c * kBins + d0];
+        if (same == m) continue;
+        std::uint32_t sum = 0;
+        for (std::size_t b = 0; b < kBins; ++b)
+            for (std::size_t c = 0; c < chunks; ++c) {
+                const std::uint32_t h = hist[c * kBins + b];
+                hist[c * kBins + b] = sum;
+                sum += h;
+            }
+        parallel_chunks(m, chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+            std::uint32_t* h = hist.data() + c * kBins;
+            const std::uint64_t* RAYKIT_RESTRICT src = a.data();
+            std::uint64_t* RAYKIT_RESTRICT dst = scratch.data();
+            for (std::size_t i = lo; i < hi; ++i) dst[h[(src[i] >> shift) & (kBins - 1)]++] = src[i];
+        });
+        a.swap(scratch);
+    }
+}
+
 /// Topology of a bottom-up build: ids < prims are primitives, id prims + k
 /// is the inner node with children kids[k].
 struct MergeTree {
     std::uint32_t prims = 0;
-    std::vector<std::array<std::uint32_t, 2>> kids;
+    RawArray<std::array<std::uint32_t, 2>> kids;
     /// Exclusive ends (indices into kids) of the batches; the nodes of one
     /// batch only have children among the primitives and earlier batches.
     std::vector<std::uint32_t> batch_end;
-    /// Inner nodes from here on depend on each other (children before
-    /// parents) and are finished one at a time.
-    std::uint32_t sequential_from = std::numeric_limits<std::uint32_t>::max();
     std::uint32_t root = 0;
 
     /// Marks the end of the current batch (no-op for an empty batch).
@@ -234,7 +403,8 @@ inline int ceil_log2(std::uint64_t c) noexcept { return c <= 1 ? 0 : std::bit_wi
 ///   - else v itself is rebuilt, which is safe because v is rebuildable.
 /// Every leaf of the result lies in a kept or a rebuilt subtree, so its depth
 /// is ≤ D. The walk uses an explicit stack (the input may be O(n) deep).
-inline void limit_depth(MergeTree& t, std::span<const vec3> centers) {
+/// Returns whether anything was rebuilt.
+inline bool limit_depth(MergeTree& t, std::span<const vec3> centers) {
     constexpr int D = RAYKIT_BVH_MAX_DEPTH;
     const std::uint32_t n = t.prims;
     const std::size_t k0 = t.kids.size();
@@ -246,7 +416,7 @@ inline void limit_depth(MergeTree& t, std::span<const vec3> centers) {
         height[k] = 1 + std::max(h_of(a), h_of(b));
         count[k] = c_of(a) + c_of(b);
     }
-    if (int(h_of(t.root)) <= D) return;
+    if (int(h_of(t.root)) <= D) return false;
 
     std::vector<std::uint32_t> ids, stack;
     // median-split rebuild of the primitives ids[b, e); returns the new id
@@ -274,7 +444,6 @@ inline void limit_depth(MergeTree& t, std::span<const vec3> centers) {
         }
         return median_build(median_build, 0, static_cast<std::uint32_t>(ids.size()));
     };
-    t.sequential_from = std::min<std::uint32_t>(t.sequential_from, static_cast<std::uint32_t>(k0));
 
     struct Item {
         std::uint32_t id;
@@ -302,6 +471,29 @@ inline void limit_depth(MergeTree& t, std::span<const vec3> centers) {
             else t.kids[it.parent][it.side] = nid;
         }
     }
+    return true;
+}
+
+/// Calls node(k) for every inner node, batch after batch (children before
+/// parents); large batches are split among threads.
+template <class Fn>
+void sweep_batches(const MergeTree& t, unsigned threads, Fn& node) {
+    const std::size_t K = t.kids.size();
+    std::size_t begin = 0;
+    for (const std::uint32_t end_u : t.batch_end) {
+        const std::size_t end = std::min<std::size_t>(end_u, K);
+        if (end <= begin) continue;
+        const std::size_t m = end - begin;
+        if (threads > 1 && m >= kBottomUpParallelPass) {
+            parallel_chunks(m, pass_chunks(m), threads, [&](std::size_t, std::size_t lo, std::size_t hi) {
+                for (std::size_t k = begin + lo; k < begin + hi; ++k) node(k);
+            });
+        } else {
+            for (std::size_t k = begin; k < end; ++k) node(k);
+        }
+        begin = end;
+    }
+    for (std::size_t k = begin; k < K; ++k) node(k);
 }
 
 /// Turns a merge tree into the final Bvh (steps 2 and 3 above; step 1 first
@@ -316,76 +508,144 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
         bvh.prim_ids.push_back(0);
         return bvh;
     }
-    if (t.batch_end.size() > std::size_t(RAYKIT_BVH_MAX_DEPTH)) limit_depth(t, centers);
+    t.close_batch();
+    const bool cut = t.batch_end.size() > std::size_t(RAYKIT_BVH_MAX_DEPTH) && limit_depth(t, centers);
 
-    // bottom-up sweep: real boxes, primitive counts, best SAH cost, output size
+    // bottom-up sweep: real boxes, primitive counts, best SAH cost, output
+    // size, packed per node so that the top-down pass touches one record
+    struct Info {
+        AABB box;
+        std::uint32_t kid[2];
+        std::uint32_t count;  // primitives below
+        std::uint32_t out;    // output nodes below (1: a leaf)
+        float cost;           // best SAH cost
+        // filled top-down: output slot (kInside: within a collapsed leaf),
+        // first slot of its descendants, first prim_ids slot
+        std::uint32_t slot, desc, first;
+    };
     const std::size_t K = t.kids.size();
-    std::vector<AABB> box(K);
-    std::vector<std::uint32_t> count(K), out(K);
-    std::vector<float> cost(K);
+    RawArray<Info> info(K);
     const float ct = cfg.traversal_cost, ci = cfg.intersection_cost;
     const std::uint32_t max_leaf = std::max(1u, cfg.max_leaf_size);
     auto node = [&](std::size_t k) {
         const auto [a, b] = t.kids[k];
-        AABB bx;
+        Info in;
+        in.kid[0] = a;
+        in.kid[1] = b;
         std::uint32_t cnt = 0, o = 1;
         float cc = 0.0f;
         for (const std::uint32_t c : {a, b}) {
             if (c < n) {
-                bx.grow(boxes[c]);
+                in.box.grow(boxes[c]);
                 cnt += 1;
                 cc += ci * boxes[c].half_area();
                 o += 1;
             } else {
-                bx.grow(box[c - n]);
-                cnt += count[c - n];
-                cc += cost[c - n];
-                o += out[c - n];
+                const Info& ch = info[c - n];
+                in.box.grow(ch.box);
+                cnt += ch.count;
+                cc += ch.cost;
+                o += ch.out;
             }
         }
-        const float sa = bx.half_area();
+        const float sa = in.box.half_area();
         const float split = ct * sa + cc;
         const float leaf = ci * sa * float(cnt);
-        box[k] = bx;
-        count[k] = cnt;
+        in.count = cnt;
         if (cnt <= max_leaf && leaf <= split) {
-            cost[k] = leaf;
-            out[k] = 1;
+            in.cost = leaf;
+            in.out = 1;
         } else {
-            cost[k] = split;
-            out[k] = o;
+            in.cost = split;
+            in.out = o;
         }
+        info[k] = in;
     };
-    const std::size_t seq = std::min<std::size_t>(t.sequential_from, K);
-    std::size_t begin = 0;
-    for (const std::uint32_t end_u : t.batch_end) {
-        const std::size_t end = std::min<std::size_t>(end_u, seq);
-        if (end <= begin) continue;
-        const std::size_t m = end - begin;
-        if (threads > 1 && m >= kBottomUpParallelPass) {
-            parallel_chunks(m, pass_chunks(m), threads, [&](std::size_t, std::size_t lo, std::size_t hi) {
-                for (std::size_t k = begin + lo; k < begin + hi; ++k) node(k);
-            });
-        } else {
-            for (std::size_t k = begin; k < end; ++k) node(k);
-        }
-        begin = end;
-    }
-    for (std::size_t k = begin; k < K; ++k) node(k);
-
-    // top-down output, pre-order with children side by side
-    const std::uint32_t root = t.root;
-    const std::uint32_t total = root < n ? 1u : out[root - n];
-    bvh.nodes.resize(total);
-    bvh.prim_ids.resize(n);
-    Node* nodes = bvh.nodes.data();
-    std::uint32_t* prim_ids = bvh.prim_ids.data();
     int fork_depth = 0;
     if (threads > 1) {
         fork_depth = 1;
         while ((1u << (fork_depth - 1)) < threads) ++fork_depth;
         ++fork_depth;
     }
+    if (cut) {
+        // Nodes above the rebuilt subtrees now have children appended after
+        // them, so the batch order no longer has children first: sweep the
+        // reachable tree in post-order instead (its depth is now ≤ D).
+        auto sweep = [&](auto&& self, std::uint32_t id, int depth) -> void {
+            if (id < n) return;
+            const std::uint32_t k = id - n;
+            fork_join(
+                depth < fork_depth, [&] { self(self, t.kids[k][0], depth + 1); },
+                [&] { self(self, t.kids[k][1], depth + 1); });
+            node(k);
+        };
+        sweep(sweep, t.root, 0);
+    } else {
+        sweep_batches(t, threads, node);
+    }
+
+    // top-down output, pre-order with children side by side
+    const std::uint32_t root = t.root;
+    const std::uint32_t total = root < n ? 1u : info[root - n].out;
+    bvh.nodes.resize(total);
+    bvh.prim_ids.resize(n);
+    Node* nodes = bvh.nodes.data();
+    std::uint32_t* prim_ids = bvh.prim_ids.data();
+    if (!cut) {
+        // Batch by batch from the root down (parents are created after their
+        // children, and the nodes of one batch are unrelated): each node
+        // reads the place its parent gave it and places its children.
+        // Records are read in order; the output is written scattered.
+        constexpr std::uint32_t kInside = 0xFFFFFFFFu;
+        Info& top = info[root - n];
+        top.slot = 0;
+        top.desc = 1;
+        top.first = 0;
+        auto down = [&](std::size_t k) {
+            const Info& in = info[k];
+            const std::uint32_t a = in.kid[0];
+            const std::uint32_t out_a = a < n ? 1u : info[a - n].out;
+            const std::uint32_t cnt_a = a < n ? 1u : info[a - n].count;
+            std::uint32_t cslot[2] = {kInside, kInside}, cdesc[2] = {0, 0};
+            if (in.slot != kInside) {
+                if (in.out == 1) {
+                    nodes[in.slot] = Node{in.box, in.first, in.count};
+                } else {
+                    nodes[in.slot] = Node{in.box, in.desc, 0};
+                    cslot[0] = in.desc;
+                    cslot[1] = in.desc + 1;
+                    cdesc[0] = in.desc + 2;
+                    cdesc[1] = in.desc + 2 + (out_a - 1);
+                }
+            }
+            const std::uint32_t cfirst[2] = {in.first, in.first + cnt_a};
+            for (int side = 0; side < 2; ++side) {
+                const std::uint32_t c = in.kid[side];
+                if (c < n) {
+                    prim_ids[cfirst[side]] = c;
+                    if (cslot[side] != kInside) nodes[cslot[side]] = Node{boxes[c], cfirst[side], 1};
+                } else {
+                    Info& ch = info[c - n];
+                    ch.slot = cslot[side];
+                    ch.desc = cdesc[side];
+                    ch.first = cfirst[side];
+                }
+            }
+        };
+        for (std::size_t bi = t.batch_end.size(); bi-- > 0;) {
+            const std::size_t end = t.batch_end[bi], begin = bi == 0 ? 0 : t.batch_end[bi - 1];
+            const std::size_t m = end - begin;
+            if (threads > 1 && m >= kBottomUpParallelPass) {
+                parallel_chunks(m, pass_chunks(m), threads, [&](std::size_t, std::size_t lo, std::size_t hi) {
+                    for (std::size_t k = begin + lo; k < begin + hi; ++k) down(k);
+                });
+            } else {
+                for (std::size_t k = begin; k < end; ++k) down(k);
+            }
+        }
+        return bvh;
+    }
+    // after a depth cut: recursive, the depth is now bounded
     auto emit = [&](auto&& self, std::uint32_t id, std::uint32_t slot, std::uint32_t desc, std::uint32_t first,
                     int depth) -> void {
         Node& o = nodes[slot];
@@ -394,9 +654,9 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
             prim_ids[first] = id;
             return;
         }
-        const std::uint32_t k = id - n;
-        if (out[k] == 1) {  // collapsed: gather the subtree's primitives left to right
-            o = Node{box[k], first, count[k]};
+        const Info& in = info[id - n];
+        if (in.out == 1) {  // collapsed: gather the subtree's primitives left to right
+            o = Node{in.box, first, in.count};
             std::uint32_t at = first;
             std::uint32_t st[RAYKIT_BVH_MAX_DEPTH + 2];
             int sp = 0;
@@ -406,18 +666,18 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
                 if (x < n) {
                     prim_ids[at++] = x;
                 } else {
-                    st[sp++] = t.kids[x - n][1];
-                    st[sp++] = t.kids[x - n][0];
+                    st[sp++] = info[x - n].kid[1];
+                    st[sp++] = info[x - n].kid[0];
                 }
             }
             return;
         }
-        o = Node{box[k], desc, 0};
-        const std::uint32_t a = t.kids[k][0], b = t.kids[k][1];
-        const std::uint32_t out_a = a < n ? 1u : out[a - n];
-        const std::uint32_t cnt_a = a < n ? 1u : count[a - n];
+        o = Node{in.box, desc, 0};
+        const std::uint32_t a = in.kid[0], b = in.kid[1];
+        const std::uint32_t out_a = a < n ? 1u : info[a - n].out;
+        const std::uint32_t cnt_a = a < n ? 1u : info[a - n].count;
         fork_join(
-            depth < fork_depth && count[k] >= 8192,
+            depth < fork_depth && in.count >= 8192,
             [&] { self(self, a, desc, desc + 2, first, depth + 1); },
             [&] { self(self, b, desc + 1, desc + 2 + (out_a - 1), first + cnt_a, depth + 1); });
     };

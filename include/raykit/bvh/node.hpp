@@ -46,7 +46,8 @@ struct PairAlignedAllocator {
         return reinterpret_cast<T*>(static_cast<char*>(p) + 32);
     }
     void deallocate(T* p, std::size_t n) noexcept {
-        ::operator delete(reinterpret_cast<char*>(p) - 32, (n + 1) * sizeof(T), std::align_val_t(64));
+        (void)n;
+        ::operator delete(reinterpret_cast<char*>(p) - 32, std::align_val_t(64));
     }
     template <class U>
     bool operator==(const PairAlignedAllocator<U>&) const noexcept {

@@ -16,30 +16,35 @@
 //   caller's order.
 // "Nearest" is the smallest distance under Config::metric, ties going to the
 // lower list index:
-//   - Metric::centre: Euclidean distance between centres (thesis). Level-0
-//     centres are the caller's centroids; a node's centre is the centre of
-//     its box.
+//   - Metric::centre: Euclidean distance between centres (thesis; compared
+//     squared). Level-0 centres are the caller's centroids; a node's centre
+//     is the centre of its box.
 //   - Metric::area: surface area of the merged box.
+// Non-finite centroids (NaN triangles) are moved to the centre of the finite
+// ones, and empty or non-finite boxes are replaced by the point box at the
+// centroid for these decisions; the output boxes are the real ones.
 // Distances are evaluated so that every rounding is a single, deterministic
 // step (float differences, exact double products, a fixed summation order),
 // so the fast builder and build_reference() give the same tree bit for bit.
 //
 // Cost. The greedy pairing is inherently sequential; what makes it fast is
-// the search. Per level the elements are sorted by the 63-bit Morton code of
-// their centres (parallel radix sort) and a complete binary tree is laid
-// over the sorted array (buckets of 8), each node holding the bounds of its
-// elements (centres, or boxes for the area metric) and the smallest list
-// index still present below it (removal updates the path to the root). A
-// query scans its own bucket, then walks up to the root, searching each
-// sibling subtree best-first; a subtree is skipped when a conservative lower
-// bound of the distance exceeds the best found, or equals it and the
-// subtree holds no lower list index. The bounds are evaluated with the same
-// roundings as the distances, so they never exceed a distance they bound
-// and the search returns exactly the literal rule's answer. For the area
-// metric the bound is the area of the query box grown to touch the subtree's
-// box (the merged box must reach at least that far on every axis).
-// Sorting, the search structure and the next level's boxes are built on all
-// threads; the result does not depend on the thread count.
+// the search. Per level the elements are sorted by the 30-bit Morton code of
+// their centres (parallel radix sort) and a binary radix tree is laid over
+// the sorted array (a range splits where its highest differing code bit
+// changes, i.e. along octree cells, down to leaves of ≤ 16 elements), each
+// node holding the bounds of its elements (centres, or boxes for the area
+// metric) and the smallest list index still present below it (a removal
+// updates the path to the root). A query scans its own leaf, then walks up
+// to the root, searching each sibling subtree best-first; a subtree is
+// skipped when a conservative lower bound of the distance exceeds the best
+// found, or equals it and the subtree holds no lower list index. The bounds
+// are evaluated with the same roundings as the distances, so they never
+// exceed a distance they bound, and the search returns exactly the literal
+// rule's answer. For the area metric the bound is the area of the query box
+// grown to touch the subtree's box (the merged box must reach at least that
+// far on every axis).
+// Sorting and the per-element passes (keys, gathers, the next level's boxes)
+// run on all threads; the result does not depend on the thread count.
 //
 // The merge tree then goes through the shared back end (bvh/collapse.hpp):
 // SAH leaf collapse into leaves of up to max_leaf_size primitives, the
@@ -55,6 +60,7 @@
 #include <limits>
 #include <span>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include "raykit/bvh/collapse.hpp"
@@ -92,18 +98,20 @@ struct PairwiseBuilder {
 
 private:
     static constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-    static constexpr std::uint32_t kBucket = 8;       // elements per search-tree leaf
+    static constexpr std::uint32_t kBucket = 16;      // elements per search-tree leaf
+    using Mask = std::uint16_t;                       // live elements of a leaf
     static constexpr std::uint32_t kBruteLevel = 64;  // levels this small pair by brute force
 
     /// Squared centre distance, rounded the same way wherever it is evaluated.
     static double centre_dist(const vec3& a, const vec3& b) noexcept {
-        const double dx = detail::clamp_extent(std::fabs(a.x - b.x));
-        const double dy = detail::clamp_extent(std::fabs(a.y - b.y));
-        const double dz = detail::clamp_extent(std::fabs(a.z - b.z));
+        const double dx = std::min(std::fabs(a.x - b.x), detail::kFloatMax);
+        const double dy = std::min(std::fabs(a.y - b.y), detail::kFloatMax);
+        const double dz = std::min(std::fabs(a.z - b.z), detail::kFloatMax);
         return (dx * dx + dy * dy) + dz * dz;  // products are exact: fused or not, the same
     }
     static double area_of(float fx, float fy, float fz) noexcept {
-        const double ex = detail::clamp_extent(fx), ey = detail::clamp_extent(fy), ez = detail::clamp_extent(fz);
+        const double ex = std::min(fx, detail::kFloatMax), ey = std::min(fy, detail::kFloatMax),
+                     ez = std::min(fz, detail::kFloatMax);
         return (ex * ey + ey * ez) + ez * ex;
     }
     /// Half surface area of the merged box.
@@ -115,8 +123,8 @@ private:
     /// ≤ centre_dist(q, p) for every p in `b` (same roundings, monotone).
     static double centre_bound(const vec3& q, const AABB& b) noexcept {
         auto gap = [](float lo, float hi, float x) {
-            const float g = std::max(lo - x, x - hi);
-            return g > 0.0f ? double(detail::clamp_extent(g)) : 0.0;
+            // max(·, 0) then the overflow clamp, branch-free (maxss/minss)
+            return double(std::min(std::max(std::max(lo - x, x - hi), 0.0f), detail::kFloatMax));
         };
         const double gx = gap(b.min.x, b.max.x, q.x), gy = gap(b.min.y, b.max.y, q.y),
                      gz = gap(b.min.z, b.max.z, q.z);
@@ -173,81 +181,120 @@ private:
 
     /// Search structure over one level (see the header comment).
     struct Index {
+        struct TreeNode {
+            AABB box;                 // bounds of the elements below (centres or boxes)
+            std::uint32_t kid;        // inner: first child (the second is kid + 1); leaf: first position
+            std::uint32_t count;      // 0: inner; leaf: number of positions
+            std::uint32_t parent;     // kNone for the root
+            std::uint32_t min_elem;   // smallest live list index below (kNone: empty)
+        };
         const Level& L;
         bool area;
-        std::uint32_t m = 0, P = 1;
-        std::vector<std::uint32_t> elem;  // sorted position -> list index
-        std::vector<std::uint32_t> pos;   // list index -> sorted position
-        std::vector<vec3> pc;             // centres, sorted
-        std::vector<AABB> pb;             // boxes, sorted (area metric)
-        std::vector<std::uint8_t> alive;  // bit mask per bucket
-        std::vector<AABB> nbox;           // heap-ordered tree, root 1, leaves P..2P-1
-        std::vector<std::uint32_t> nmin;  // smallest live list index below (kNone: empty)
+        std::uint32_t m = 0;
+        std::vector<std::uint32_t> elem;     // sorted position -> list index
+        std::vector<std::uint32_t> pos;      // list index -> sorted position
+        std::vector<std::uint32_t> leaf_of;  // sorted position -> tree leaf
+        std::vector<vec3> pc;                // centres, sorted (centre metric)
+        std::vector<AABB> pb;                // boxes, sorted (area metric)
+        std::vector<Mask> alive;             // live positions per leaf (indexed by tree node)
+        std::vector<TreeNode> tree;          // root 0; siblings side by side
 
         Index(const Level& lv, bool use_area, unsigned threads) : L(lv), area(use_area) {
             m = static_cast<std::uint32_t>(L.size());
-            const std::uint32_t buckets = (m + kBucket - 1) / kBucket;
-            P = std::bit_ceil(std::max(buckets, 1u));
-            // Morton sort of the centres
+            // Morton sort of the centres (30-bit codes: the order only affects speed)
             const detail::MortonQuantizer mq(detail::finite_point_bounds(L.centre, threads));
-            std::vector<std::uint64_t> keys(m);
+            detail::RawArray<std::uint64_t> keys(m), scratch;
+            detail::par_for(m, threads, [&](std::size_t i) { keys[i] = std::uint64_t(mq.code30(L.centre[i])) << 32 | i; });
+            detail::radix_sort_words(keys, 32, 64, threads, scratch);
+            scratch = {};
             elem.resize(m);
-            parallel_for(m, threads, [&](std::size_t i) {
-                keys[i] = mq(L.centre[i]);
-                elem[i] = static_cast<std::uint32_t>(i);
-            });
-            detail::radix_sort(keys, elem, 63, threads);
-            keys = {};
             pos.resize(m);
-            pc.resize(m);
+            leaf_of.resize(m);
             if (area) pb.resize(m);
-            parallel_for(m, threads, [&](std::size_t s) {
-                const std::uint32_t e = elem[s];
+            else pc.resize(m);
+            detail::par_for(m, threads, [&](std::size_t s) {
+                const auto e = static_cast<std::uint32_t>(keys[s]);
+                elem[s] = e;
                 pos[e] = static_cast<std::uint32_t>(s);
-                pc[s] = L.centre[e];
                 if (area) pb[s] = L.box[e];
+                else pc[s] = L.centre[e];
             });
-            alive.assign(P, 0);
-            nbox.assign(2 * std::size_t(P), AABB{});
-            nmin.assign(2 * std::size_t(P), kNone);
-            parallel_chunks(buckets, detail::pass_chunks(m), threads, [&](std::size_t, std::size_t lo, std::size_t hi) {
-                for (std::size_t k = lo; k < hi; ++k) {
-                    const std::uint32_t b = static_cast<std::uint32_t>(k) * kBucket;
-                    const std::uint32_t e = std::min(b + kBucket, m);
-                    AABB bx;
-                    std::uint32_t mn = kNone;
-                    for (std::uint32_t s = b; s < e; ++s) {
-                        if (area) bx.grow(pb[s]);
-                        else bx.grow(pc[s]);
-                        mn = std::min(mn, elem[s]);
-                    }
-                    alive[k] = static_cast<std::uint8_t>((1u << (e - b)) - 1u);
-                    nbox[P + k] = bx;
-                    nmin[P + k] = mn;
+            // Radix tree over the codes: a range splits where its highest
+            // differing code bit changes (octree cells, so sibling boxes
+            // barely overlap), equal codes in the middle, down to ≤ kBucket.
+            auto code = [&](std::uint32_t s) { return static_cast<std::uint32_t>(keys[s] >> 32); };
+            tree.reserve(2 * (std::size_t(m) / kBucket + 1) * 2);
+            tree.push_back({AABB{}, 0, 0, kNone, kNone});
+            struct Range {
+                std::uint32_t node, lo, hi;
+            };
+            std::vector<Range> work{{0, 0, m}};
+            while (!work.empty()) {
+                const Range r = work.back();
+                work.pop_back();
+                if (r.hi - r.lo <= kBucket) {
+                    tree[r.node].kid = r.lo;
+                    tree[r.node].count = r.hi - r.lo;
+                    continue;
                 }
-            });
-            for (std::uint32_t k = P - 1; k >= 1; --k) {
-                nbox[k] = merge(nbox[2 * k], nbox[2 * k + 1]);
-                nmin[k] = std::min(nmin[2 * k], nmin[2 * k + 1]);
+                std::uint32_t mid;
+                const std::uint32_t a = code(r.lo), b = code(r.hi - 1);
+                if (a == b) {
+                    mid = r.lo + (r.hi - r.lo) / 2;
+                } else {
+                    const std::uint32_t bit = 1u << (31 - std::countl_zero(a ^ b));
+                    std::uint32_t lo = r.lo, hi = r.hi - 1;  // first position with the bit set
+                    while (lo < hi) {
+                        const std::uint32_t c = lo + (hi - lo) / 2;
+                        if (code(c) & bit) hi = c;
+                        else lo = c + 1;
+                    }
+                    mid = lo;
+                }
+                const auto k = static_cast<std::uint32_t>(tree.size());
+                tree[r.node].kid = k;
+                tree.push_back({AABB{}, 0, 0, r.node, kNone});
+                tree.push_back({AABB{}, 0, 0, r.node, kNone});
+                work.push_back({k + 1, mid, r.hi});
+                work.push_back({k, r.lo, mid});
+            }
+            keys = {};
+            // leaves, then inner nodes (children come after their parent)
+            alive.assign(tree.size(), 0);
+            for (std::size_t k = tree.size(); k-- > 0;) {
+                TreeNode& t = tree[k];
+                if (t.count > 0) {
+                    for (std::uint32_t s = t.kid; s < t.kid + t.count; ++s) {
+                        t.box.grow(area ? pb[s] : AABB::of_point(pc[s]));
+                        t.min_elem = std::min(t.min_elem, elem[s]);
+                        leaf_of[s] = static_cast<std::uint32_t>(k);
+                    }
+                    alive[k] = static_cast<Mask>((std::uint64_t(1) << t.count) - 1u);
+                } else {
+                    t.box = merge(tree[t.kid].box, tree[t.kid + 1].box);
+                    t.min_elem = std::min(tree[t.kid].min_elem, tree[t.kid + 1].min_elem);
+                }
             }
         }
 
-        bool is_alive(std::uint32_t s) const noexcept { return (alive[s / kBucket] >> (s % kBucket)) & 1u; }
+        bool is_alive(std::uint32_t s) const noexcept {
+            const std::uint32_t leaf = leaf_of[s];
+            return (alive[leaf] >> (s - tree[leaf].kid)) & 1u;
+        }
 
         void remove(std::uint32_t s) noexcept {
-            const std::uint32_t leaf = s / kBucket;
-            const std::uint32_t e = elem[s];
-            std::uint32_t mask = alive[leaf] & ~(1u << (s % kBucket));
-            alive[leaf] = static_cast<std::uint8_t>(mask);
-            std::uint32_t k = P + leaf;
-            if (nmin[k] != e) return;
+            std::uint32_t k = leaf_of[s];
+            const std::uint32_t first = tree[k].kid, e = elem[s];
+            Mask mask = alive[k] & static_cast<Mask>(~(Mask(1) << (s - first)));
+            alive[k] = mask;
+            if (tree[k].min_elem != e) return;
             std::uint32_t mn = kNone;
-            for (; mask; mask &= mask - 1) mn = std::min(mn, elem[leaf * kBucket + std::countr_zero(mask)]);
-            nmin[k] = mn;
-            for (k >>= 1; k >= 1; k >>= 1) {
-                const std::uint32_t v = std::min(nmin[2 * k], nmin[2 * k + 1]);
-                if (nmin[k] == v) break;
-                nmin[k] = v;
+            for (; mask; mask &= mask - 1) mn = std::min(mn, elem[first + std::countr_zero(mask)]);
+            tree[k].min_elem = mn;
+            for (k = tree[k].parent; k != kNone; k = tree[k].parent) {
+                const std::uint32_t v = std::min(tree[tree[k].kid].min_elem, tree[tree[k].kid + 1].min_elem);
+                if (tree[k].min_elem == v) break;
+                tree[k].min_elem = v;
             }
         }
 
@@ -257,56 +304,58 @@ private:
         };
 
         /// Nearest live element to list element q (already removed).
-        Best nearest(std::uint32_t q) const noexcept {
+        Best nearest(std::uint32_t q, std::vector<std::pair<double, std::uint64_t>>& stack) const {
             const vec3 qc = L.centre[q];
             const AABB qb = L.box[q];
             Best best;
-            auto bound = [&](std::uint32_t k) { return area ? area_bound(qb, nbox[k]) : centre_bound(qc, nbox[k]); };
-            auto skip = [&](double lb, std::uint32_t k) {
-                return lb > best.d || (lb == best.d && nmin[k] >= best.e);
+            auto bound = [&](std::uint32_t k) {
+                return area ? area_bound(qb, tree[k].box) : centre_bound(qc, tree[k].box);
             };
-            auto scan = [&](std::uint32_t leaf) {
-                const std::uint32_t base = leaf * kBucket;
-                for (std::uint32_t mask = alive[leaf]; mask; mask &= mask - 1) {
+            auto skip = [&](double lb, std::uint32_t k) {
+                return lb > best.d || (lb == best.d && tree[k].min_elem >= best.e);
+            };
+            auto scan = [&](std::uint32_t k) {
+                const std::uint32_t base = tree[k].kid;
+                for (Mask mask = alive[k]; mask; mask &= mask - 1) {
                     const std::uint32_t s = base + std::countr_zero(mask);
                     const double d = area ? merged_area(qb, pb[s]) : centre_dist(qc, pc[s]);
                     const std::uint32_t e = elem[s];
                     if (d < best.d || (d == best.d && e < best.e)) best = {d, e, s};
                 }
             };
-            struct Entry {
-                std::uint32_t k;
-                double lb;
-            };
-            Entry stack[2 * 34];
+            // best first below `root`; the stack holds (bound, node), full
+            // width entries (no partial store forwarding)
             auto down = [&](std::uint32_t root, double lb0) {
-                int sp = 0;
-                stack[sp++] = {root, lb0};
-                while (sp > 0) {
-                    const Entry en = stack[--sp];
-                    if (skip(en.lb, en.k)) continue;
-                    if (en.k >= P) {
-                        scan(en.k - P);
+                stack.clear();
+                stack.push_back({lb0, root});
+                while (!stack.empty()) {
+                    const auto [lb, k64] = stack.back();
+                    stack.pop_back();
+                    const auto k = static_cast<std::uint32_t>(k64);
+                    if (skip(lb, k)) continue;
+                    const TreeNode& t = tree[k];
+                    if (t.count > 0) {
+                        scan(k);
                         continue;
                     }
-                    const std::uint32_t l = 2 * en.k, r = l + 1;
-                    const bool hl = nmin[l] != kNone, hr = nmin[r] != kNone;
-                    const double bl = hl ? bound(l) : kInf, br = hr ? bound(r) : kInf;
-                    // push the farther first so the nearer is searched first
-                    if (bl <= br) {
-                        if (hr) stack[sp++] = {r, br};
-                        if (hl) stack[sp++] = {l, bl};
+                    const std::uint32_t l = t.kid, r = l + 1;
+                    const double bl = tree[l].min_elem != kNone ? bound(l) : kInf;
+                    const double br = tree[r].min_elem != kNone ? bound(r) : kInf;
+                    const bool hl = !skip(bl, l), hr = !skip(br, r);
+                    if (bl <= br) {  // the farther first, so the nearer is searched first
+                        if (hr) stack.push_back({br, r});
+                        if (hl) stack.push_back({bl, l});
                     } else {
-                        if (hl) stack[sp++] = {l, bl};
-                        if (hr) stack[sp++] = {r, br};
+                        if (hl) stack.push_back({bl, l});
+                        if (hr) stack.push_back({br, r});
                     }
                 }
             };
-            const std::uint32_t leaf = pos[q] / kBucket;
-            scan(leaf);
-            for (std::uint32_t k = P + leaf; k > 1; k >>= 1) {
-                const std::uint32_t sib = k ^ 1u;
-                if (nmin[sib] == kNone) continue;
+            std::uint32_t k = leaf_of[pos[q]];
+            scan(k);
+            for (std::uint32_t p = tree[k].parent; p != kNone; k = p, p = tree[p].parent) {
+                const std::uint32_t sib = tree[p].kid + (tree[p].kid == k ? 1u : 0u);
+                if (tree[sib].min_elem == kNone) continue;
                 const double lb = bound(sib);
                 if (!skip(lb, sib)) down(sib, lb);
             }
@@ -317,12 +366,14 @@ private:
     static std::uint32_t pair_fast(const Level& L, bool area, unsigned threads, std::vector<Pair>& pairs) {
         Index ix(L, area, threads);
         const auto m = static_cast<std::uint32_t>(L.size());
+        std::vector<std::pair<double, std::uint64_t>> stack;
+        stack.reserve(256);
         std::uint32_t carried = kNone;
         for (std::uint32_t i = 0; i < m; ++i) {
             const std::uint32_t s = ix.pos[i];
             if (!ix.is_alive(s)) continue;
             ix.remove(s);
-            const Index::Best b = ix.nearest(i);
+            const Index::Best b = ix.nearest(i, stack);
             if (b.e == kNone) {
                 carried = i;
                 break;  // nothing else is alive
@@ -340,15 +391,15 @@ private:
         const unsigned threads = resolve_threads(cfg.threads);
         const bool area = cfg.metric == Config::Metric::area;
         const auto n = static_cast<std::uint32_t>(boxes.size());
-        const std::vector<vec3> sc = detail::sanitize_centers(centers, threads);
+        const detail::SanitizedCenters sc = detail::sanitize_centers(centers, threads);
         detail::MergeTree tree;
         tree.prims = n;
         tree.kids.reserve(n > 0 ? n - 1 : 0);
         Level cur, next;
-        cur.centre = sc;
+        cur.centre.assign(sc.view.begin(), sc.view.end());
         cur.box.resize(n);
         cur.node.resize(n);
-        parallel_for(n, threads, [&](std::size_t i) {
+        detail::par_for(n, threads, [&](std::size_t i) {
             cur.box[i] = detail::working_box(boxes[i], sc[i]);
             cur.node[i] = static_cast<std::uint32_t>(i);
         });
@@ -364,7 +415,7 @@ private:
             next.centre.resize(m2);
             next.box.resize(m2);
             next.node.resize(m2);
-            parallel_for(np, threads, [&](std::size_t t) {
+            detail::par_for(np, threads, [&](std::size_t t) {
                 const Pair p = pairs[t];
                 const AABB b = merge(cur.box[p.a], cur.box[p.b]);
                 tree.kids[base + t] = {cur.node[p.a], cur.node[p.b]};
@@ -382,7 +433,7 @@ private:
         }
         tree.root = n > 0 ? cur.node[0] : 0;
         const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost};
-        return detail::finish_bottom_up(tree, boxes, sc, lc, threads);
+        return detail::finish_bottom_up(tree, boxes, sc.view, lc, threads);
     }
 };
 

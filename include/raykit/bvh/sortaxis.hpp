@@ -8,10 +8,11 @@
 // Level by level until one element is left (level 0 = the primitives):
 //   1. sort the level's elements by their centre along Config::axis:
 //        Axis::x       the x coordinate (thesis),
-//        Axis::longest the coordinate of the longest axis of the level's
-//                      centre bounds,
-//        Axis::morton  the 63-bit Morton code of the centres (a 3-D
-//                      generalisation of "along an axis");
+//        Axis::longest the coordinate of the longest axis of the
+//                      primitives' centroid bounds,
+//        Axis::morton  the 30-bit Morton code of the centres (a 3-D
+//                      generalisation of "along an axis"; the grid is
+//                      fitted to the primitives' centroids);
 //      (stable parallel radix sort: ties keep the previous level's order);
 //   2. cut the sorted list into chunks of 8192 to 16383 elements (the
 //      boundaries depend only on the element count, so the tree does not
@@ -48,8 +49,8 @@ struct SortAxisBuilder {
     struct Config {
         enum class Axis {
             x,        ///< sort along x (thesis)
-            longest,  ///< along the longest axis of each level's centre bounds
-            morton,   ///< by 63-bit Morton code of the centres
+            longest,  ///< along the longest axis of the centroid bounds
+            morton,   ///< by 30-bit Morton code of the centres
         };
         enum class Metric {
             centre,  ///< distance between centres (thesis)
@@ -76,51 +77,24 @@ struct SortAxisBuilder {
         const unsigned threads = resolve_threads(cfg.threads);
         const bool area = cfg.metric == Config::Metric::area;
         const auto n = static_cast<std::uint32_t>(boxes.size());
-        const std::vector<vec3> sc = detail::sanitize_centers(centers, threads);
+        const detail::SanitizedCenters sc = detail::sanitize_centers(centers, threads);
         detail::MergeTree tree;
         tree.prims = n;
         tree.kids.reserve(n > 0 ? n - 1 : 0);
 
-        Level cur, sorted;
-        cur.resize(n);
-        parallel_for(n, threads, [&](std::size_t i) {
-            cur.box[i] = detail::working_box(boxes[i], sc[i]);
-            cur.centre[i] = sc[i];
-            cur.node[i] = static_cast<std::uint32_t>(i);
-        });
-        std::vector<std::uint32_t> order, keys32;
-        std::vector<std::uint64_t> keys64;
+        // Sort keys, the same function on every level: the Morton grid and
+        // the longest axis come from the primitives' centroid bounds.
+        const KeyMaker key{cfg.axis == Config::Axis::morton, cfg.axis == Config::Axis::longest ? max_axis(sc.bounds.extent()) : 0,
+                           detail::MortonQuantizer(sc.bounds)};
+        Level cur, next;                              // this level's elements, the next level's
+        detail::RawArray<std::uint64_t> keys(n), keys_next, scratch;  // (key << 32 | element)
+        detail::par_for(n, threads, [&](std::size_t i) { keys[i] = key(sc[i], static_cast<std::uint32_t>(i)); });
         std::vector<std::uint32_t> chunk_out, chunk_pairs;
-        while (cur.size() > 1) {
-            const std::size_t m = cur.size();
-            // 1. sort
-            order.resize(m);
-            if (cfg.axis == Config::Axis::morton) {
-                const detail::MortonQuantizer mq(detail::finite_point_bounds(cur.centre, threads));
-                keys64.resize(m);
-                parallel_for(m, threads, [&](std::size_t i) {
-                    keys64[i] = mq(cur.centre[i]);
-                    order[i] = static_cast<std::uint32_t>(i);
-                });
-                detail::radix_sort(keys64, order, 63, threads);
-            } else {
-                int axis = 0;
-                if (cfg.axis == Config::Axis::longest)
-                    axis = max_axis(detail::finite_point_bounds(cur.centre, threads).extent());
-                keys32.resize(m);
-                parallel_for(m, threads, [&](std::size_t i) {
-                    keys32[i] = detail::orderable_bits(cur.centre[i][axis]);
-                    order[i] = static_cast<std::uint32_t>(i);
-                });
-                detail::radix_sort(keys32, order, 32, threads);
-            }
-            sorted.resize(m);
-            parallel_for(m, threads, [&](std::size_t s) {
-                const std::uint32_t e = order[s];
-                sorted.centre[s] = cur.centre[e];
-                sorted.box[s] = cur.box[e];
-                sorted.node[s] = cur.node[e];
-            });
+        std::size_t m = n;
+        bool first = true;  // level 0 reads the primitives directly
+        while (m > 1) {
+            // 1. sort (stable: equal keys keep the previous level's order)
+            detail::radix_sort_words(keys, 32, 64, threads, scratch);
             // 2. chunks and their output slots
             const std::size_t chunks = std::max<std::size_t>(1, m / kChunk);
             chunk_out.assign(chunks + 1, 0);
@@ -131,31 +105,66 @@ struct SortAxisBuilder {
                 chunk_pairs[c + 1] = chunk_pairs[c] + static_cast<std::uint32_t>(len / 2);
             }
             const auto base = static_cast<std::uint32_t>(tree.kids.size());
+            const std::size_t m2 = chunk_out[chunks];
             tree.kids.resize(base + chunk_pairs[chunks]);
-            cur.resize(chunk_out[chunks]);
-            parallel_chunks(chunks, chunks, threads, [&](std::size_t c, std::size_t, std::size_t) {
-                pair_chunk(sorted, m * c / chunks, m * (c + 1) / chunks, cfg.window, area, n, base + chunk_pairs[c],
-                           chunk_out[c], tree, cur);
+            next.resize(m2);
+            keys_next.resize(m2);
+            // 3. pair the chunks; each worker gathers a chunk into its own
+            //    buffer (sorted order), then pairs it
+            const unsigned workers = static_cast<unsigned>(std::min<std::size_t>(threads, chunks));
+            parallel_chunks(chunks, workers, workers, [&](std::size_t, std::size_t c0, std::size_t c1) {
+                Level S;
+                for (std::size_t c = c0; c < c1; ++c) {
+                    const std::size_t lo = m * c / chunks, hi = m * (c + 1) / chunks;
+                    S.resize(hi - lo);
+                    for (std::size_t s = lo; s < hi; ++s) {
+                        const auto e = static_cast<std::uint32_t>(keys[s]);
+                        if (first) {
+                            S.centre[s - lo] = sc[e];
+                            S.box[s - lo] = detail::working_box(boxes[e], sc[e]);
+                            S.node[s - lo] = e;
+                        } else {
+                            S.centre[s - lo] = cur.centre[e];
+                            S.box[s - lo] = cur.box[e];
+                            S.node[s - lo] = cur.node[e];
+                        }
+                    }
+                    pair_chunk(S, cfg.window, area, n, base + chunk_pairs[c], chunk_out[c], tree, next, keys_next, key);
+                }
             });
             tree.close_batch();
+            first = false;
+            std::swap(cur, next);
+            keys.swap(keys_next);
+            m = m2;
         }
-        tree.root = n > 0 ? cur.node[0] : 0;
+        tree.root = n == 0 ? 0 : n == 1 ? 0 : cur.node[0];
         const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost};
-        return detail::finish_bottom_up(tree, boxes, sc, lc, threads);
+        return detail::finish_bottom_up(tree, boxes, sc.view, lc, threads);
     }
 
 private:
     static constexpr std::size_t kChunk = 8192;
 
     struct Level {
-        std::vector<vec3> centre;
-        std::vector<AABB> box;  // working boxes
-        std::vector<std::uint32_t> node;
+        detail::RawArray<vec3> centre;
+        detail::RawArray<AABB> box;  // working boxes
+        detail::RawArray<std::uint32_t> node;
         std::size_t size() const noexcept { return node.size(); }
         void resize(std::size_t m) {
             centre.resize(m);
             box.resize(m);
             node.resize(m);
+        }
+    };
+
+    struct KeyMaker {
+        bool morton;
+        int axis;
+        detail::MortonQuantizer mq;
+        std::uint64_t operator()(const vec3& c, std::uint32_t element) const noexcept {
+            const std::uint32_t k = morton ? mq.code30(c) : detail::orderable_bits(c[axis]);
+            return std::uint64_t(k) << 32 | element;
         }
     };
 
@@ -172,11 +181,13 @@ private:
         return d.x * d.x + d.y * d.y + d.z * d.z;
     }
 
-    /// Greedy windowed pairing of sorted[lo, hi); writes new nodes from
-    /// kids[first_pair] and next-level elements from out[first_out].
-    static void pair_chunk(const Level& S, std::size_t lo, std::size_t hi, unsigned window, bool area,
-                           std::uint32_t n, std::uint32_t first_pair, std::uint32_t first_out,
-                           detail::MergeTree& tree, Level& out) {
+    /// Greedy windowed pairing of one sorted chunk S; writes new nodes from
+    /// kids[first_pair] and next-level elements (and their keys) from
+    /// out[first_out].
+    static void pair_chunk(const Level& S, unsigned window, bool area, std::uint32_t n, std::uint32_t first_pair,
+                           std::uint32_t first_out, detail::MergeTree& tree, Level& out,
+                           detail::RawArray<std::uint64_t>& keys, const KeyMaker& key) {
+        const std::size_t lo = 0, hi = S.size();
         std::vector<std::uint32_t> win(window + 1);
         std::size_t wn = 0, p = lo;
         std::uint32_t t = 0;
@@ -189,6 +200,7 @@ private:
                 out.centre[o] = S.centre[k];
                 out.box[o] = S.box[k];
                 out.node[o] = S.node[k];
+                keys[o] = key(S.centre[k], o);
                 break;
             }
             std::size_t best = 1;
@@ -208,6 +220,7 @@ private:
             out.box[o] = box;
             out.centre[o] = detail::box_centre(box);
             out.node[o] = n + id;
+            keys[o] = key(out.centre[o], o);
             ++t;
             // drop win[0] and win[best]
             std::size_t w = 0;

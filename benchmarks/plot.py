@@ -1,0 +1,116 @@
+#!/usr/bin/env python3
+"""Charts of speed against quality from a bench_builders JSON run.
+
+    bench_builders --benchmark_out=builders.json --benchmark_out_format=json
+    python3 benchmarks/plot.py builders.json docs/
+
+Writes, per scene, docs/builders_<scene>_sah.png (build time against SAH
+cost) and docs/builders_<scene>_trace.png (build time against trace speed,
+primary and random rays), one point per builder/setting at 2 threads, with the
+binned-SAH builder and Embree LOW/MEDIUM/HIGH as reference points. Needs
+matplotlib (Debian: python3-matplotlib).
+"""
+import json
+import os
+import re
+import sys
+from collections import defaultdict
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+COLOURS = {"sah": "black", "pairwise": "tab:purple", "sortaxis": "tab:blue", "ploc": "tab:green", "embree": "tab:red"}
+
+
+def load(path):
+    with open(path) as f:
+        data = json.load(f)
+    rows = defaultdict(list)  # scene -> [(label, family, threads, ms, sah, primary, random)]
+    for b in data["benchmarks"]:
+        if b.get("error_occurred"):
+            continue
+        name = re.sub(r"/(min_time|iterations):[^/]*|/real_time", "", b["name"])
+        m = re.match(r"builders/([^/]+)/(.+)/threads:(\d+)$", name)
+        if not m:
+            continue
+        scene, label, threads = m.group(1), m.group(2), int(m.group(3))
+        ms = b["real_time"] if b.get("time_unit") == "ms" else b["real_time"] / 1e6
+        rows[scene].append((label, label.split("/")[0], threads, ms, b.get("sah"), b.get("primary_Mrays"),
+                            b.get("random_Mrays")))
+    return rows
+
+
+def chart(scene, rows, out_dir):
+    pts = [r for r in rows if r[2] == 2]
+    # build time against SAH cost
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    for label, fam, _, ms, sah, _, _ in pts:
+        if sah is None or fam == "embree":
+            continue
+        ax.scatter(ms, sah, color=COLOURS.get(fam, "gray"), s=28)
+        ax.annotate(label.replace("sortaxis/", "").replace("pairwise/", "pw/"), (ms, sah), fontsize=6,
+                    xytext=(3, 2), textcoords="offset points")
+    for fam, col in COLOURS.items():
+        if fam != "embree":
+            ax.scatter([], [], color=col, label=fam)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("build time, ms (2 threads, log)")
+    ax.set_ylabel("SAH cost (Ct = Ci = 1, log; lower is better)")
+    ax.set_title(f"{scene}: build time against tree quality")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out_dir, f"builders_{scene}_sah.png"), dpi=110)
+    plt.close(fig)
+    # build time against trace speed
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharex=True)
+    for ax, idx, what in ((axes[0], 5, "primary"), (axes[1], 6, "random")):
+        for r in pts:
+            label, fam, ms, v = r[0], r[1], r[3], r[idx]
+            if v is None:
+                continue
+            marker = "*" if fam == "embree" else "o"
+            ax.scatter(ms, v, color=COLOURS.get(fam, "gray"), s=60 if marker == "*" else 26, marker=marker)
+            ax.annotate(label.replace("sortaxis/", "").replace("pairwise/", "pw/"), (ms, v), fontsize=6,
+                        xytext=(3, 2), textcoords="offset points")
+        ax.set_xscale("log")
+        ax.set_xlabel("build time, ms (2 threads, log)")
+        ax.set_ylabel(f"closest-hit Mrays/s, {what} rays (2 threads)")
+        ax.set_title(f"{scene}: {what} rays")
+        ax.grid(True, which="both", alpha=0.3)
+    for fam, col in COLOURS.items():
+        axes[0].scatter([], [], color=col, label=fam, marker="*" if fam == "embree" else "o")
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out_dir, f"builders_{scene}_trace.png"), dpi=110)
+    plt.close(fig)
+
+
+def table(scene, rows):
+    print(f"\n#### {scene} (2 threads)\n")
+    print("| builder / setting | build ms | SAH | SAH / binned SAH | primary Mrays/s | random Mrays/s |")
+    print("|---|---|---|---|---|---|")
+    ref = next((r[4] for r in rows if r[0] == "sah" and r[2] == 2), None)
+    for label, fam, threads, ms, sah, pr, rn in sorted(rows, key=lambda r: r[3]):
+        if threads != 2:
+            continue
+        ratio = f"{sah / ref:.3f}" if sah and ref else "-"
+        sah_s = f"{sah:.2f}" if sah else "-"
+        print(f"| {label} | {ms:.1f} | {sah_s} | {ratio} | {pr or 0:.2f} | {rn or 0:.2f} |")
+
+
+def main():
+    if len(sys.argv) != 3:
+        sys.exit("usage: plot.py BENCH_BUILDERS.json OUT_DIR")
+    rows = load(sys.argv[1])
+    os.makedirs(sys.argv[2], exist_ok=True)
+    for scene, r in rows.items():
+        chart(scene, r, sys.argv[2])
+        table(scene, r)
+
+
+if __name__ == "__main__":
+    main()

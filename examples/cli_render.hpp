@@ -1,0 +1,318 @@
+// examples/cli_render.hpp — the `raykit render` command (CPU renderer front end).
+//
+//   raykit render SCENE.obj OUT.png [options]
+//
+//   int raykit_cli_render(int argc, char** argv, int first_arg);
+//       Parses argv[first_arg ..] (SCENE.obj, OUT.png and the options of raykit_cli_render_usage()),
+//       loads the scene, builds the BVH, renders on the CPU, writes OUT.png (OUT.pfm when the
+//       name ends in .pfm) and, with --pfm, a float copy. Returns 0. Prints warnings (missing
+//       textures, ...) and, for renders that take more than a second on a terminal, a progress
+//       bar to stderr; prints a one-line summary to stdout (rays traced by kind, Mrays/s, ms per
+//       stage) unless --quiet.
+//       Throws RaykitCliRenderUsageError (a std::invalid_argument) for bad usage — the caller
+//       should print raykit_cli_render_usage() and exit with status 2 — and other
+//       std::exceptions (raykit::ParseError, std::runtime_error, ...) for everything else,
+//       e.g. "--device cl: ... not available yet".
+//   const char* raykit_cli_render_usage();
+//
+// Defaults: no --camera frames the whole scene (bounding-sphere fit, looking from front-right-
+// above); no --light/--sun places raykit::default_key_light (a white point light above-left of
+// the camera).
+#pragma once
+
+#include <algorithm>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#if defined(__unix__) || defined(__APPLE__)
+#include <unistd.h>
+#endif
+
+#include "raykit.hpp"
+#include "raykit/io/obj.hpp"
+#include "raykit/render/render_cpu.hpp"
+#include "raykit/scene/build_options.hpp"
+
+/// Bad command-line usage of `raykit render`.
+struct RaykitCliRenderUsageError : std::invalid_argument {
+    using std::invalid_argument::invalid_argument;
+};
+
+inline const char* raykit_cli_render_usage() {
+    return R"(usage:
+  raykit render SCENE.obj OUT.png [options]
+
+  --width W  --height H     image size (default 640 x 480)
+  --spp N                   samples per pixel, stratified and jittered (default 1)
+  --max-depth D             reflection/refraction bounces (default 5)
+  --shader NAME             whitted (default), normals, depth, ao, debug-cost
+  --camera EX EY EZ TX TY TZ  eye and target (default: frame the whole scene)
+  --up UX UY UZ             camera up vector (default 0 1 0)
+  --fov DEG                 vertical field of view (default 45)
+  --light X Y Z R G B       point light (repeatable; default: a key light above-left of the camera)
+  --sun DX DY DZ R G B      directional light travelling along D (repeatable)
+  --ambient R G B           ambient light (default 0.1 0.1 0.1)
+  --background R G B        colour of rays that miss (default 0 0 0)
+  --no-shadows              no shadow rays
+  --filter NAME             texture filter: bilinear (default), nearest
+  --ao-samples N            ao: rays per sample (default 16)
+  --ao-radius R             ao: occlusion distance (default 0.1 x scene diagonal)
+  --seed S                  random seed (default 0)
+  --no-jitter               samples at stratum centres (1 spp = pixel centres)
+  --threads T               worker threads, 0 = all (default 0)
+  --device cpu|cl           renderer (default cpu; cl is not available yet)
+  --builder NAME            BVH builder: sah (default), pairwise, sortaxis, ploc
+  --leaf-size N             largest BVH leaf (default 8)
+  --no-leaf-triangles       trace through the index triangles instead of the leaf-order copy
+  --pfm OUT.pfm             also write linear float RGB (PFM)
+  --alpha                   write coverage as PNG alpha
+  --profile                 split the render time into trace / shadow / shade thread time
+  --quiet                   no progress bar, no summary
+)";
+}
+
+namespace raykit::detail::cli_render {
+
+/// argv[first ..] split into positional arguments and options with their values.
+struct Parsed {
+    std::vector<std::string> pos;
+    std::vector<std::pair<std::string, std::vector<std::string>>> opts;  // in command-line order
+
+    bool has(std::string_view k) const {
+        for (auto& o : opts)
+            if (o.first == k) return true;
+        return false;
+    }
+    const std::vector<std::string>* last(std::string_view k) const {
+        const std::vector<std::string>* v = nullptr;
+        for (auto& o : opts)
+            if (o.first == k) v = &o.second;
+        return v;
+    }
+};
+
+/// Number of values each option takes.
+inline int arity(std::string_view k) {
+    static const std::pair<std::string_view, int> table[] = {
+        {"--width", 1},   {"--height", 1},     {"--spp", 1},        {"--max-depth", 1}, {"--shader", 1},
+        {"--camera", 6},  {"--up", 3},         {"--fov", 1},        {"--light", 6},     {"--sun", 6},
+        {"--ambient", 3}, {"--background", 3}, {"--no-shadows", 0}, {"--filter", 1},    {"--ao-samples", 1},
+        {"--ao-radius", 1}, {"--seed", 1},     {"--no-jitter", 0},  {"--threads", 1},   {"--device", 1},
+        {"--builder", 1}, {"--leaf-size", 1},  {"--no-leaf-triangles", 0}, {"--pfm", 1}, {"--alpha", 0},
+        {"--profile", 0}, {"--quiet", 0}};
+    for (auto& [name, n] : table)
+        if (name == k) return n;
+    return -1;
+}
+
+inline Parsed parse(int argc, char** argv, int first) {
+    Parsed p;
+    for (int i = first; i < argc; ++i) {
+        std::string a = argv[i];
+        if (a.size() > 2 && a.rfind("--", 0) == 0) {
+            const int n = arity(a);
+            if (n < 0) throw RaykitCliRenderUsageError("unknown option " + a);
+            if (i + n >= argc) throw RaykitCliRenderUsageError(a + " needs " + std::to_string(n) + " value(s)");
+            std::vector<std::string> vals(argv + i + 1, argv + i + 1 + n);
+            i += n;
+            p.opts.emplace_back(std::move(a), std::move(vals));
+        } else {
+            p.pos.push_back(std::move(a));
+        }
+    }
+    return p;
+}
+
+template <class T>
+T number(const std::string& opt, const std::string& s) {
+    std::string_view v(s);
+    if (!v.empty() && v[0] == '+') v.remove_prefix(1);
+    T out{};
+    const auto [ptr, ec] = std::from_chars(v.data(), v.data() + v.size(), out);
+    if (ec != std::errc() || ptr != v.data() + v.size() || v.empty())
+        throw RaykitCliRenderUsageError(opt + " expects a number, got '" + s + "'");
+    if constexpr (std::is_floating_point_v<T>)
+        if (!std::isfinite(out)) throw RaykitCliRenderUsageError(opt + " expects a finite number, got '" + s + "'");
+    return out;
+}
+
+template <class T>
+T number_or(const Parsed& p, const std::string& opt, T def) {
+    const auto* v = p.last(opt);
+    return v ? number<T>(opt, (*v)[0]) : def;
+}
+
+inline vec3 vec3_at(const std::string& opt, const std::vector<std::string>& v, std::size_t first) {
+    return vec3(number<float>(opt, v[first]), number<float>(opt, v[first + 1]), number<float>(opt, v[first + 2]));
+}
+
+/// Progress bar on stderr: appears once a render has run for a second, updates at most 10 times
+/// a second, only when stderr is a terminal.
+struct ProgressBar {
+    std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now(), last{};
+    bool shown = false;
+    bool enabled = true;
+
+    static bool stderr_is_terminal() {
+#if defined(__unix__) || defined(__APPLE__)
+        return isatty(fileno(stderr)) != 0;
+#else
+        return false;
+#endif
+    }
+    void update(std::size_t done, std::size_t total) {
+        if (!enabled || total == 0) return;
+        const auto now = std::chrono::steady_clock::now();
+        if (now - start < std::chrono::seconds(1)) return;
+        if (shown && done < total && now - last < std::chrono::milliseconds(100)) return;
+        last = now;
+        shown = true;
+        constexpr int kWidth = 40;
+        const double f = double(done) / double(total);
+        const int n = int(f * kWidth);
+        const double elapsed = std::chrono::duration<double>(now - start).count();
+        const double eta = f > 0.0 ? elapsed * (1.0 - f) / f : 0.0;
+        std::fprintf(stderr, "\r[%.*s%.*s] %3d%%  %.1f s left ", n, "########################################",
+                     kWidth - n, "........................................", int(f * 100.0 + 0.5), eta);
+        std::fflush(stderr);
+    }
+    void finish() {
+        if (shown) std::fputc('\n', stderr);
+    }
+};
+
+}  // namespace raykit::detail::cli_render
+
+inline int raykit_cli_render(int argc, char** argv, int first_arg) {
+    using namespace raykit;
+    namespace cr = raykit::detail::cli_render;
+    using Clock = std::chrono::steady_clock;
+    auto ms_since = [](Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); };
+
+    const cr::Parsed p = cr::parse(argc, argv, first_arg);
+    if (p.pos.size() != 2) throw RaykitCliRenderUsageError("render takes SCENE.obj OUT.png");
+    const std::string device = p.last("--device") ? (*p.last("--device"))[0] : "cpu";
+    if (device == "cl")
+        throw std::runtime_error("--device cl: the OpenCL renderer is not available yet (use --device cpu)");
+    if (device != "cpu") throw RaykitCliRenderUsageError("unknown --device '" + device + "' (known: cpu, cl)");
+
+    const auto width = cr::number_or<std::uint32_t>(p, "--width", 640);
+    const auto height = cr::number_or<std::uint32_t>(p, "--height", 480);
+    if (width == 0 || height == 0 || width > 65536 || height > 65536)
+        throw RaykitCliRenderUsageError("--width and --height must be in 1..65536");
+    RenderSettings set;
+    set.spp = cr::number_or<unsigned>(p, "--spp", 1);
+    if (set.spp == 0 || set.spp > 65536) throw RaykitCliRenderUsageError("--spp must be in 1..65536");
+    set.shade.max_depth = cr::number_or<unsigned>(p, "--max-depth", 5);
+    if (set.shade.max_depth > 1000) throw RaykitCliRenderUsageError("--max-depth must be at most 1000");
+    try {
+        if (auto* v = p.last("--shader")) set.shade.shader = parse_shader((*v)[0]);
+        if (auto* v = p.last("--filter")) set.shade.filter = parse_texture_filter((*v)[0]);
+    } catch (const std::invalid_argument& e) {
+        throw RaykitCliRenderUsageError(e.what());
+    }
+    if (auto* v = p.last("--ambient")) set.shade.ambient = cr::vec3_at("--ambient", *v, 0);
+    if (auto* v = p.last("--background")) set.shade.background = cr::vec3_at("--background", *v, 0);
+    set.shade.shadows = !p.has("--no-shadows");
+    set.shade.ao_samples = cr::number_or<unsigned>(p, "--ao-samples", 16);
+    set.shade.ao_radius = cr::number_or<float>(p, "--ao-radius", 0.0f);
+    set.seed = cr::number_or<std::uint64_t>(p, "--seed", 0);
+    set.jitter = !p.has("--no-jitter");
+    set.threads = cr::number_or<unsigned>(p, "--threads", 0);
+    set.time_stages = p.has("--profile");
+    const bool quiet = p.has("--quiet");
+    const float fov = cr::number_or<float>(p, "--fov", 45.0f);
+    if (!(fov > 0.0f && fov < 180.0f)) throw RaykitCliRenderUsageError("--fov must be in (0, 180)");
+
+    BuildOptions build;
+    try {
+        if (auto* v = p.last("--builder")) build.builder = BuildOptions::parse_builder((*v)[0]);
+    } catch (const std::invalid_argument& e) {
+        throw RaykitCliRenderUsageError(e.what());
+    }
+    build.max_leaf_size = cr::number_or<unsigned>(p, "--leaf-size", 8);
+    if (build.max_leaf_size < 1) throw RaykitCliRenderUsageError("--leaf-size must be at least 1");
+    build.threads = set.threads;
+
+    // ---- load, build, materials
+    auto t0 = Clock::now();
+    Mesh mesh = load_obj(p.pos[0]);
+    const double load_ms = ms_since(t0);
+    for (const std::string& w : mesh.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
+    RenderScene rs = prepare_render_scene(std::move(mesh), build, !p.has("--no-leaf-triangles"));
+    for (const std::string& w : rs.materials.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
+
+    // ---- camera and lights
+    Camera cam;
+    if (auto* v = p.last("--camera")) {
+        cam.position = cr::vec3_at("--camera", *v, 0);
+        cam.target = cr::vec3_at("--camera", *v, 3);
+        cam.up = p.last("--up") ? cr::vec3_at("--up", *p.last("--up"), 0) : vec3(0.0f, 1.0f, 0.0f);
+        cam.vfov_degrees = fov;
+        cam.width = width;
+        cam.height = height;
+    } else {
+        cam = frame_scene(rs.bounds(), width, height, fov);
+        if (auto* v = p.last("--up")) cam.up = cr::vec3_at("--up", *v, 0);
+    }
+    try {
+        (void)cam.frame();
+    } catch (const std::invalid_argument& e) {
+        throw RaykitCliRenderUsageError(e.what());
+    }
+    for (const auto& [k, v] : p.opts) {
+        if (k == "--light") rs.lights.push_back(Light::point(cr::vec3_at(k, v, 0), cr::vec3_at(k, v, 3)));
+        if (k == "--sun") {
+            const vec3 d = cr::vec3_at(k, v, 0);
+            if (!(glm::length(d) > 0.0f)) throw RaykitCliRenderUsageError("--sun direction must not be zero");
+            rs.lights.push_back(Light::directional(d, cr::vec3_at(k, v, 3)));
+        }
+    }
+    if (rs.lights.empty()) rs.lights.push_back(default_key_light(cam));
+
+    // ---- render
+    cr::ProgressBar bar;
+    bar.enabled = !quiet && cr::ProgressBar::stderr_is_terminal();
+    set.progress = [&bar](std::size_t done, std::size_t total) { bar.update(done, total); };
+    RenderStats st;
+    const Image img = render_cpu(rs.view(), cam, set, &st);
+    bar.finish();
+
+    // ---- write
+    t0 = Clock::now();
+    const std::filesystem::path out = p.pos[1];
+    PngOptions po;
+    po.alpha = p.has("--alpha");
+    if (out.extension() == ".pfm" || out.extension() == ".PFM") write_pfm(img, out);
+    else write_png(img, out, po);
+    if (auto* v = p.last("--pfm")) write_pfm(img, (*v)[0]);
+    const double write_ms = ms_since(t0);
+
+    if (!quiet) {
+        const RayCounts& r = st.rays;
+        std::printf("raykit render: %ux%u, %u spp, %s, %u thread%s: %llu rays (primary %llu, shadow %llu, "
+                    "reflection %llu, refraction %llu, ao %llu), %.2f Mrays/s; ms: load %.1f, build %.1f, "
+                    "materials %.1f, setup %.2f, render %.1f, resolve %.2f, write %.1f",
+                    width, height, set.spp, shader_name(set.shade.shader), st.threads, st.threads == 1 ? "" : "s",
+                    (unsigned long long)r.total(), (unsigned long long)r.primary, (unsigned long long)r.shadow,
+                    (unsigned long long)r.reflection, (unsigned long long)r.refraction, (unsigned long long)r.ao,
+                    st.mrays_per_second(), load_ms, rs.build_ms, rs.materials_ms, st.setup_ms, st.render_ms,
+                    st.resolve_ms, write_ms);
+        if (set.time_stages)
+            std::printf("; thread-ms: trace %.1f, shadow %.1f, shade %.1f", st.trace_thread_ms, st.shadow_thread_ms,
+                        st.shade_thread_ms);
+        std::printf("\n");
+    }
+    return 0;
+}

@@ -1,0 +1,291 @@
+// raykit/render/render_cpu.hpp — the CPU renderer: camera samples -> shade_ray -> image.
+//
+// Interface
+// ---------
+//   RenderScene rs = prepare_render_scene(load_obj("scene.obj"));   // owns mesh, BVH, materials
+//   rs.lights.push_back(default_key_light(rs.bounds(), cam));
+//   Camera cam = frame_scene(rs.bounds(), 640, 480);                 // whole scene in view
+//   RenderSettings set;  set.spp = 4;  set.shade.max_depth = 2;  set.threads = 2;
+//   RenderStats stats;
+//   Image img = render_cpu(rs.view(), cam, set, &stats);
+//
+//   Or with parts owned elsewhere: render_cpu(make_shade_scene(mesh, bvh, materials, lights), cam, set).
+//
+// Sampling: `spp` samples per pixel, stratified: a jittered m x m grid when spp = m², otherwise
+// N-rooks (one sample per row and per column of an spp x spp grid, columns shuffled per pixel),
+// each jittered uniformly inside its cell (RenderSettings::jitter = false puts every sample at
+// its cell centre, so spp = 1 samples the pixel centre). The pixel value is the mean of its
+// samples (box filter); alpha is the fraction of samples whose camera ray hit geometry.
+//
+// Determinism: every random number of sample s of pixel i comes from a generator seeded with
+// hash_seed(seed, i, s), and per-row counters are summed in row order, so the image and the
+// ray counts do not depend on the number of threads.
+//
+// Parallelism: rows are dealt round-robin to `threads` workers (raykit::parallel_chunks; 0 =
+// all hardware threads). Each worker keeps one PathScratch (a growable stack of pending rays),
+// so memory does not grow with spp or depth beyond what one path needs.
+//
+// debug_cost: pixels hold the mean traversal steps; after rendering they are mapped to a
+// heat-map colour (blue, cyan, green, yellow, red) with `cost_scale` steps (or the frame's
+// maximum when 0) at the red end.
+//
+// Statistics (RenderStats): rays traced per kind, and wall time per stage: setup (camera
+// frame), render (all tracing and shading), resolve (heat map). With time_stages the thread
+// time of the render stage is further split into trace (closest-hit), shadow (any-hit) and
+// shade (everything else, camera rays included), timed with stage_ticks() (the x86 time-stamp
+// counter, calibrated against steady_clock over the frame); the reads cost a few percent.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <numeric>
+#include <stdexcept>
+#include <vector>
+
+#include "raykit/render/image.hpp"
+#include "raykit/render/material.hpp"
+#include "raykit/render/shade.hpp"
+#include "raykit/scene/build_options.hpp"
+#include "raykit/scene/camera.hpp"
+#include "raykit/scene/leaf_triangles.hpp"
+#include "raykit/util/parallel.hpp"
+
+namespace raykit {
+
+struct RenderSettings {
+    unsigned spp = 1;            ///< samples per pixel (>= 1)
+    unsigned threads = 0;        ///< worker threads, 0 = all hardware threads
+    std::uint64_t seed = 0;      ///< changes every random number
+    bool jitter = true;          ///< false: samples at the centres of their strata
+    ShadeSettings shade;         ///< shader, depth, ambient, lights' shadows, ...
+    bool time_stages = false;    ///< split render time into trace / shadow / shade (thread time)
+    float cost_scale = 0.0f;     ///< debug_cost: steps shown as red; 0 = the frame's maximum
+    /// Called after each finished row with (rows done, rows in total), from worker threads but
+    /// never concurrently. May be empty.
+    std::function<void(std::size_t, std::size_t)> progress;
+};
+
+struct RenderStats {
+    RayCounts rays;
+    std::uint64_t traversal_steps = 0;  ///< debug_cost: camera-ray traversal steps
+    unsigned deepest = 0;               ///< deepest bounce traced
+    unsigned threads = 1;               ///< workers used
+    double setup_ms = 0.0, render_ms = 0.0, resolve_ms = 0.0, total_ms = 0.0;  ///< wall time
+    // time_stages only: thread time summed over all workers
+    double trace_thread_ms = 0.0, shadow_thread_ms = 0.0, shade_thread_ms = 0.0;
+
+    /// Rays traced per second during the render stage, in millions.
+    double mrays_per_second() const noexcept {
+        return render_ms > 0.0 ? double(rays.total()) / (render_ms * 1e3) : 0.0;
+    }
+};
+
+namespace detail {
+
+/// Heat-map colour for t in [0, 1] (display values; blue, cyan, green, yellow, red).
+inline vec3 heat_color(float t) noexcept {
+    static constexpr float stops[5][3] = {{0, 0, 1}, {0, 1, 1}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0}};
+    t = std::clamp(std::isfinite(t) ? t : 0.0f, 0.0f, 1.0f) * 4.0f;
+    const int i = std::min(3, int(t));
+    const float f = t - float(i);
+    return vec3(stops[i][0] + (stops[i + 1][0] - stops[i][0]) * f, stops[i][1] + (stops[i + 1][1] - stops[i][1]) * f,
+                stops[i][2] + (stops[i + 1][2] - stops[i][2]) * f);
+}
+
+}  // namespace detail
+
+/// Renders `scene` through `cam` (see the header comment). Throws std::invalid_argument for
+/// spp == 0 or an invalid camera (Camera::frame()); exceptions from workers are rethrown.
+inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const RenderSettings& set,
+                        RenderStats* stats = nullptr) {
+    using Clock = std::chrono::steady_clock;
+    auto ms_since = [](Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); };
+    if (set.spp == 0) throw std::invalid_argument("raykit::render_cpu: spp must be at least 1");
+    if (!scene.mesh || !scene.bvh || !scene.materials)
+        throw std::invalid_argument("raykit::render_cpu: incomplete ShadeScene (use make_shade_scene)");
+    const auto t_start = Clock::now();
+
+    // ---- setup
+    const CameraFrame frame = cam.frame();
+    const std::uint32_t W = frame.width, H = frame.height;
+    Image img(W, H, vec4(0.0f));
+    const unsigned spp = set.spp;
+    const auto m = static_cast<unsigned>(std::sqrt(double(spp)));
+    const bool grid = m * m == spp;
+    const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(resolve_threads(set.threads), H));
+    std::vector<ShadeCounters> row_counters(H);
+    std::vector<std::uint64_t> row_ticks(set.time_stages ? H : 0, 0);
+    std::atomic<std::size_t> rows_done{0};
+    std::mutex progress_mutex;
+    const double setup_ms = ms_since(t_start);
+
+    // ---- render
+    const auto t_render = Clock::now();
+    const std::uint64_t ticks_render = set.time_stages ? stage_ticks() : 0;
+    const float inv_spp = 1.0f / float(spp);
+    parallel_chunks(H, H, threads, [&](std::size_t, std::size_t y0, std::size_t y1) {
+        PathScratch scratch;
+        std::vector<std::uint32_t> perm;
+        for (std::size_t yy = y0; yy < y1; ++yy) {
+            const auto y = static_cast<std::uint32_t>(yy);
+            const std::uint64_t t_row = set.time_stages ? stage_ticks() : 0;
+            ShadeCounters& cnt = row_counters[y];
+            cnt.time_stages = set.time_stages;
+            for (std::uint32_t x = 0; x < W; ++x) {
+                const std::uint64_t pixel = std::uint64_t(y) * W + x;
+                if (!grid) {  // N-rooks: shuffle the columns of this pixel's strata
+                    perm.resize(spp);
+                    std::iota(perm.begin(), perm.end(), 0u);
+                    SampleRng pr(hash_seed(set.seed, pixel, ~std::uint64_t(0)));
+                    for (unsigned i = spp - 1; i > 0; --i) std::swap(perm[i], perm[pr.next_u64() % (i + 1)]);
+                }
+                vec3 sum(0.0f);
+                float cover = 0.0f;
+                for (unsigned s = 0; s < spp; ++s) {
+                    SampleRng rng(hash_seed(set.seed, pixel, s));
+                    const float r1 = set.jitter ? rng.next_float() : 0.5f;
+                    const float r2 = set.jitter ? rng.next_float() : 0.5f;
+                    float jx, jy;
+                    if (grid) {
+                        jx = (float(s % m) + r1) / float(m);
+                        jy = (float(s / m) + r2) / float(m);
+                    } else {
+                        jx = (float(s) + r1) * inv_spp;
+                        jy = (float(perm[s]) + r2) * inv_spp;
+                    }
+                    const Ray ray = frame.ray(x, y, jx, jy);
+                    const SampleResult r = shade_ray(scene, set.shade, ray, rng, cnt, scratch);
+                    sum += r.color;
+                    cover += r.alpha;
+                }
+                img.at(x, y) = vec4(sum * inv_spp, cover * inv_spp);
+            }
+            if (set.time_stages) row_ticks[y] = stage_ticks() - t_row;
+            const std::size_t done = ++rows_done;
+            if (set.progress) {
+                std::lock_guard lock(progress_mutex);
+                set.progress(done, H);
+            }
+        }
+    });
+    const double render_ms = ms_since(t_render);
+    const std::uint64_t render_ticks = set.time_stages ? stage_ticks() - ticks_render : 0;
+
+    // ---- resolve
+    const auto t_resolve = Clock::now();
+    if (set.shade.shader == ShaderKind::debug_cost) {
+        float scale = set.cost_scale;
+        if (!(scale > 0.0f)) {
+            scale = 0.0f;
+            for (const vec4& p : img.pixels) scale = std::max(scale, p.x);
+        }
+        for (vec4& p : img.pixels) {
+            const vec3 c = detail::heat_color(scale > 0.0f ? p.x / scale : 0.0f);
+            p = vec4(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z), p.w);
+        }
+    }
+    const double resolve_ms = ms_since(t_resolve);
+
+    if (stats) {
+        RenderStats st;
+        ShadeCounters total;
+        for (const ShadeCounters& c : row_counters) total += c;
+        st.rays = total.rays;
+        st.traversal_steps = total.traversal_steps;
+        st.deepest = total.deepest;
+        st.threads = threads;
+        st.setup_ms = setup_ms;
+        st.render_ms = render_ms;
+        st.resolve_ms = resolve_ms;
+        st.total_ms = ms_since(t_start);
+        if (set.time_stages && render_ticks > 0) {
+            const double ms_per_tick = render_ms / double(render_ticks);  // calibrated on this frame
+            std::uint64_t all = 0;
+            for (std::uint64_t r : row_ticks) all += r;
+            st.trace_thread_ms = double(total.times.trace_ticks) * ms_per_tick;
+            st.shadow_thread_ms = double(total.times.shadow_ticks) * ms_per_tick;
+            st.shade_thread_ms = std::max(0.0, double(all) * ms_per_tick - st.trace_thread_ms - st.shadow_thread_ms);
+        }
+        *stats = st;
+    }
+    return img;
+}
+
+// ---------------------------------------------------------------- owning scene, framing, default light
+
+/// Everything a render needs, owned: mesh, BVH, optional LeafTriangles, materials, lights.
+/// view() is valid until the RenderScene is modified, moved or destroyed.
+struct RenderScene {
+    Mesh mesh;
+    Bvh bvh;
+    LeafTriangles leaf;
+    bool use_leaf_triangles = true;
+    MaterialTable materials;
+    std::vector<Light> lights;
+    double build_ms = 0.0;      ///< BVH build (+ LeafTriangles copy)
+    double materials_ms = 0.0;  ///< material table, texture loading included
+
+    ShadeScene view() const {
+        return make_shade_scene(mesh, bvh, materials, lights, use_leaf_triangles ? &leaf : nullptr);
+    }
+    /// Bounds of the finite vertices.
+    AABB bounds() const noexcept {
+        AABB b;
+        for (const vec3& p : mesh.positions)
+            if (is_finite(p)) b.grow(p);
+        return b;
+    }
+};
+
+/// Builds the BVH (with `build`), LeafTriangles (when `leaf_triangles`) and the material table
+/// (textures through `cache` when given) for `mesh`; no lights. Material warnings are in
+/// result.materials.warnings.
+inline RenderScene prepare_render_scene(Mesh mesh, const BuildOptions& build = {}, bool leaf_triangles = true,
+                                        TextureCache* cache = nullptr) {
+    using Clock = std::chrono::steady_clock;
+    RenderScene rs;
+    rs.mesh = std::move(mesh);
+    auto t0 = Clock::now();
+    rs.bvh = build_bvh(MeshView(rs.mesh), build);
+    rs.use_leaf_triangles = leaf_triangles;
+    if (leaf_triangles) rs.leaf.update(rs.mesh, rs.bvh, build.threads);
+    rs.build_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    t0 = Clock::now();
+    rs.materials = make_material_table(rs.mesh, cache, build.threads);
+    rs.materials_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    return rs;
+}
+
+/// A camera that sees all of `bounds` (its bounding sphere fits the vertical field of view),
+/// looking from direction `from` (default: front-right-above).
+inline Camera frame_scene(const AABB& bounds, std::uint32_t width, std::uint32_t height, float vfov_degrees = 45.0f,
+                          vec3 from = vec3(1.0f, 0.6f, 0.8f)) {
+    Camera c = camera_looking_at(bounds, width, height, from, vfov_degrees);
+    if (width < height) {  // fit the narrower horizontal field of view too
+        const float half_v = 0.5f * vfov_degrees * 3.14159265f / 180.0f;
+        const float half_h = std::atan(std::tan(half_v) * float(width) / float(height));
+        const vec3 off = c.position - c.target;
+        c.position = c.target + off * (std::sin(half_v) / std::sin(half_h));
+    }
+    return c;
+}
+
+/// A white point light above and to the left of the camera, as far from the target as the
+/// camera is: a "key light" that casts visible shadows.
+inline Light default_key_light(const Camera& cam, vec3 color = vec3(1.0f)) {
+    const vec3 off = cam.position - cam.target;
+    const float dist = glm::length(off);
+    if (!(dist > 0.0f)) return Light::point(cam.position + vec3(0.0f, 1.0f, 0.0f), color);
+    const vec3 fwd = -off / dist;
+    vec3 right = glm::cross(fwd, cam.up);
+    right = glm::length(right) > 0.0f ? glm::normalize(right) : vec3(1.0f, 0.0f, 0.0f);
+    const vec3 up = glm::cross(right, fwd);
+    return Light::point(cam.position + (up * 0.8f - right * 0.5f) * dist, color);
+}
+
+}  // namespace raykit

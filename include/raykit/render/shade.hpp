@@ -1,0 +1,615 @@
+// raykit/render/shade.hpp — the CPU shaders: what one camera ray sees.
+//
+// Interface
+// ---------
+//   MaterialTable mt = make_material_table(mesh);
+//   std::vector<Light> lights{Light::point({0, 5, 0}, vec3(1))};
+//   ShadeScene scene = make_shade_scene(mesh, bvh, mt, lights);      // non-owning view
+//   ShadeSettings s;  s.shader = ShaderKind::whitted;  s.max_depth = 5;
+//   PathScratch scratch;  ShadeCounters counters;  SampleRng rng(seed);
+//   SampleResult r = shade_ray(scene, s, camera_ray, rng, counters, scratch);
+//   // r.color: linear RGB radiance, r.alpha: 1 when the camera ray hit something, r.cost: traversal steps
+//
+// shade_ray is the CPU twin of the device ray hook: it traces the camera ray and every ray its
+// shading asks for (shadow, reflection, refraction, ambient occlusion). render_cpu.hpp calls it
+// per sample. It is reentrant: all mutable state is in the arguments.
+//
+// Shaders (ShaderKind, names for parse_shader in brackets)
+// --------------------------------------------------------
+//  whitted ("whitted")   Whitted-style ray tracing. At each hit:
+//      colour = Ke + (1 - transparency) · (ambient · base + Σ_lights visible · base · max(0, N·L) · Lc)
+//                  + Σ_lights visible · Ks · max(0, N·H)^Ns · Lc
+//      base = Kd · map_Kd(uv) (linear), N the shading normal, H = normalize(L + V) (Blinn-Phong),
+//      "visible" = a shadow ray (any-hit) from the offset hit point to the light is unblocked
+//      (ShadeSettings::shadows). Lights have no distance falloff. The ambient term uses the
+//      diffuse colour (MTL Ka is ignored: exporters routinely write Ka 1 1 1). Then, while the
+//      path is shorter than max_depth bounces, it spawns
+//        - a mirror ray weighted by Ks for illum 3, 5, 7 (Schlick-Fresnel weighted for 5, 7), and
+//        - for transparent materials (see material.hpp) a refracted ray with weight
+//          transparency · (1 - F) and a reflected ray with weight transparency · F, F the exact
+//          dielectric Fresnel reflectance for index Ni (1 on total internal reflection).
+//      Child rays whose weight drops below min_weight (all channels) are not traced. Shadow rays
+//      treat every surface as opaque except alpha cut-outs.
+//  normals ("normals")   0.5 · N + 0.5 of the shading normal at the first hit.
+//  depth ("depth")       1 - distance / far at the first hit (far: ShadeSettings::depth_far, or the
+//                        distance from the ray origin to the farthest corner of the scene bounds).
+//  ao ("ao")             ambient occlusion: the fraction of ao_samples cosine-weighted rays from
+//                        the first hit that escape within ao_radius (default 0.1 · scene diagonal).
+//  debug_cost ("debug-cost")  r.cost = inner nodes + leaves visited by the camera ray's traversal
+//                        (TraversalStats); r.color = (cost, cost, cost), to be mapped by the caller
+//                        (render_cpu maps it to a heat-map colour).
+// Misses give ShadeSettings::background (and alpha 0 for a camera ray).
+//
+// Geometry
+// --------
+//  * Shading normal: the interpolated vertex normals when the mesh has them (and they do not
+//    cancel), else the geometric normal; both flipped to face the incoming ray.
+//  * Inside/outside for refraction: the side of the interpolated vertex normal when present,
+//    else the side given by the triangle's winding (counter-clockwise = front).
+//  * Texture coordinates: interpolated per vertex (0, 0) when the mesh has none.
+//  * Alpha cut-outs: triangles whose material's map_Kd has alpha < 0.5 at the hit are skipped
+//    inside the traversal itself (for closest-hit and any-hit queries alike), so the ray simply
+//    continues through foliage cut-outs; scenes without such materials pay nothing.
+//  * Secondary ray origins use offset_ray_origin (math/offset.hpp) on the side the ray leaves to.
+//  * Triangle test: raykit's default (Watertight); ties as in scene/trace.hpp (smaller index wins).
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "raykit/bvh/traverse.hpp"
+#include "raykit/intersect/triangle.hpp"
+#include "raykit/math/hit.hpp"
+#include "raykit/math/offset.hpp"
+#include "raykit/render/material.hpp"
+#include "raykit/scene/leaf_triangles.hpp"
+#include "raykit/scene/mesh.hpp"
+
+namespace raykit {
+
+enum class ShaderKind { whitted, normals, depth, ao, debug_cost };
+
+inline const char* shader_name(ShaderKind k) noexcept {
+    switch (k) {
+        case ShaderKind::normals: return "normals";
+        case ShaderKind::depth: return "depth";
+        case ShaderKind::ao: return "ao";
+        case ShaderKind::debug_cost: return "debug-cost";
+        default: return "whitted";
+    }
+}
+/// "whitted", "normals", "depth", "ao", "debug-cost"; throws std::invalid_argument otherwise.
+inline ShaderKind parse_shader(std::string_view s) {
+    if (s == "whitted") return ShaderKind::whitted;
+    if (s == "normals") return ShaderKind::normals;
+    if (s == "depth") return ShaderKind::depth;
+    if (s == "ao") return ShaderKind::ao;
+    if (s == "debug-cost" || s == "debug_cost") return ShaderKind::debug_cost;
+    throw std::invalid_argument("unknown shader '" + std::string(s) +
+                                "' (known: whitted, normals, depth, ao, debug-cost)");
+}
+
+/// A light without distance falloff: `color` is the radiance scale it contributes.
+struct Light {
+    enum class Type { point, directional };
+    Type type = Type::point;
+    vec3 position{0.0f};               ///< point lights
+    vec3 direction{0.0f, -1.0f, 0.0f};  ///< directional lights: the direction the light travels
+    vec3 color{1.0f};
+
+    static Light point(vec3 p, vec3 c = vec3(1.0f)) { return {Type::point, p, vec3(0.0f, -1.0f, 0.0f), c}; }
+    static Light directional(vec3 dir, vec3 c = vec3(1.0f)) { return {Type::directional, vec3(0.0f), dir, c}; }
+};
+
+struct ShadeSettings {
+    ShaderKind shader = ShaderKind::whitted;
+    unsigned max_depth = 5;        ///< reflection/refraction bounces after the camera ray (0 = none)
+    vec3 ambient{0.1f};            ///< ambient light (times the diffuse colour)
+    vec3 background{0.0f};         ///< radiance of rays that hit nothing
+    TextureFilter filter = TextureFilter::bilinear;
+    bool shadows = true;           ///< trace shadow rays (false: every light is visible)
+    unsigned ao_samples = 16;      ///< ao: rays per camera ray
+    float ao_radius = 0.0f;        ///< ao: occlusion distance; 0 = 0.1 · scene diagonal
+    float depth_far = 0.0f;        ///< depth: distance mapped to 0; 0 = farthest scene corner
+    float min_weight = 1e-3f;      ///< whitted: child rays below this weight are not traced
+};
+
+/// Rays traced, by kind.
+struct RayCounts {
+    std::uint64_t primary = 0, shadow = 0, reflection = 0, refraction = 0, ao = 0;
+    std::uint64_t total() const noexcept { return primary + shadow + reflection + refraction + ao; }
+    RayCounts& operator+=(const RayCounts& o) noexcept {
+        primary += o.primary, shadow += o.shadow, reflection += o.reflection, refraction += o.refraction, ao += o.ao;
+        return *this;
+    }
+};
+
+/// A cheap timestamp for stage timing: the CPU's time-stamp counter on x86 (a few ns to read;
+/// constant-rate on every x86 CPU of the last 15 years), else steady_clock nanoseconds. Only
+/// differences mean something; render_cpu converts them to milliseconds against steady_clock.
+inline std::uint64_t stage_ticks() noexcept {
+#if (defined(__GNUC__) || defined(__clang__)) && (defined(__x86_64__) || defined(__i386__))
+    return __builtin_ia32_rdtsc();
+#else
+    return std::uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                             std::chrono::steady_clock::now().time_since_epoch())
+                             .count());
+#endif
+}
+
+/// Thread time spent in the traversals, in stage_ticks() units (filled only when
+/// ShadeCounters::time_stages is set).
+struct StageTimes {
+    std::uint64_t trace_ticks = 0;   ///< closest-hit queries (camera, reflection, refraction rays)
+    std::uint64_t shadow_ticks = 0;  ///< any-hit queries (shadow and ambient-occlusion rays)
+    StageTimes& operator+=(const StageTimes& o) noexcept {
+        trace_ticks += o.trace_ticks, shadow_ticks += o.shadow_ticks;
+        return *this;
+    }
+};
+
+/// What shade_ray adds to as it works (one per thread; merge with +=).
+struct ShadeCounters {
+    RayCounts rays;
+    std::uint64_t traversal_steps = 0;  ///< debug_cost only: inner nodes + leaves of camera rays
+    unsigned deepest = 0;               ///< largest bounce depth reached by a traced ray
+    bool time_stages = false;           ///< measure StageTimes (two stage_ticks() reads per query)
+    StageTimes times;
+    ShadeCounters& operator+=(const ShadeCounters& o) noexcept {
+        rays += o.rays;
+        traversal_steps += o.traversal_steps;
+        deepest = std::max(deepest, o.deepest);
+        times += o.times;
+        return *this;
+    }
+};
+
+/// Non-owning view of everything the shaders read. Make it with make_shade_scene.
+struct ShadeScene {
+    const Mesh* mesh = nullptr;
+    const Bvh* bvh = nullptr;
+    const LeafTriangles* leaf = nullptr;   ///< optional faster trace path (same answers)
+    const MaterialTable* materials = nullptr;
+    std::span<const Light> lights;
+    AABB bounds;                           ///< of the mesh's finite vertices
+    bool alpha_testing = false;            ///< some material is alpha-tested
+};
+
+/// Checks the parts fit together and fills bounds and alpha_testing. `leaf` must have been
+/// made from (mesh, bvh) when given. Throws std::invalid_argument when the BVH does not cover
+/// the mesh's triangles or the vertex attribute arrays have the wrong length. All arguments
+/// must outlive the returned view.
+inline ShadeScene make_shade_scene(const Mesh& mesh, const Bvh& bvh, const MaterialTable& materials,
+                                   std::span<const Light> lights, const LeafTriangles* leaf = nullptr) {
+    if (bvh.prim_ids.size() != mesh.triangles.size() && !(mesh.triangles.empty() && bvh.empty()))
+        throw std::invalid_argument("raykit::make_shade_scene: BVH and mesh differ in triangle count");
+    if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
+        throw std::invalid_argument("raykit::make_shade_scene: normals must be empty or one per vertex");
+    if (!mesh.texcoords.empty() && mesh.texcoords.size() != mesh.positions.size())
+        throw std::invalid_argument("raykit::make_shade_scene: texcoords must be empty or one per vertex");
+    if (leaf && leaf->vertices.size() != bvh.prim_ids.size() * 3)
+        throw std::invalid_argument("raykit::make_shade_scene: LeafTriangles not made from this BVH");
+    for (const Triangle& t : mesh.triangles)
+        for (int c = 0; c < 3; ++c)
+            if (t.v[c] >= mesh.positions.size())
+                throw std::invalid_argument("raykit::make_shade_scene: triangle index out of range");
+    ShadeScene s;
+    s.mesh = &mesh;
+    s.bvh = &bvh;
+    s.leaf = leaf;
+    s.materials = &materials;
+    s.lights = lights;
+    for (const vec3& p : mesh.positions)
+        if (is_finite(p)) s.bounds.grow(p);
+    s.alpha_testing = materials.any_alpha_tested();
+    return s;
+}
+
+/// Small deterministic generator (splitmix64). Seed it from (pixel, sample) for images that do
+/// not depend on the thread count.
+struct SampleRng {
+    std::uint64_t state = 0;
+    explicit SampleRng(std::uint64_t seed = 0) noexcept : state(seed) {}
+    std::uint64_t next_u64() noexcept {
+        std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        return z ^ (z >> 31);
+    }
+    /// Uniform in [0, 1).
+    float next_float() noexcept { return float(next_u64() >> 40) * (1.0f / 16777216.0f); }
+};
+
+/// Mixes several 64-bit values into a seed (splitmix64 finaliser over a running hash).
+inline std::uint64_t hash_seed(std::uint64_t a, std::uint64_t b = 0, std::uint64_t c = 0) noexcept {
+    SampleRng r(a * 0xD6E8FEB86659FD93ull ^ b);
+    r.state ^= r.next_u64() + c * 0x9E3779B97F4A7C15ull;
+    return r.next_u64();
+}
+
+struct SampleResult {
+    vec3 color{0.0f};
+    float alpha = 0.0f;  ///< 1 when the camera ray hit geometry
+    float cost = 0.0f;   ///< debug_cost: traversal steps of the camera ray
+};
+
+/// Reusable work space for shade_ray (one per thread): the pending rays of a path.
+struct PathScratch {
+    enum class Kind : std::uint8_t { primary, reflection, refraction };
+    struct Item {
+        Ray ray;
+        vec3 weight;
+        std::uint32_t depth;
+        Kind kind;
+    };
+    std::vector<Item> stack;
+};
+
+/// The surface at a hit, as the shaders see it.
+struct SurfacePoint {
+    vec3 p{0.0f};       ///< position (barycentric interpolation of the vertices)
+    vec3 ng{0.0f};      ///< unit geometric normal, facing the incoming ray
+    vec3 ns{0.0f};      ///< unit shading normal, facing the incoming ray
+    vec2 uv{0.0f};
+    bool entering = true;  ///< the ray arrives from the outside (see "Geometry" above)
+    const RenderMaterial* material = nullptr;
+    vec3 base{0.0f};    ///< Kd times the map_Kd colour
+};
+
+namespace detail {
+
+inline float max3(const vec3& v) noexcept { return std::max(v.x, std::max(v.y, v.z)); }
+
+/// Texture coordinates of triangle `prim` at barycentrics (u, v).
+inline vec2 interpolate_uv(const Mesh& m, std::uint32_t prim, float u, float v) noexcept {
+    if (m.texcoords.empty()) return vec2(0.0f);
+    const Triangle& t = m.triangles[prim];
+    return m.texcoords[t.v[0]] * (1.0f - u - v) + m.texcoords[t.v[1]] * u + m.texcoords[t.v[2]] * v;
+}
+
+/// True when the hit (prim, u, v) lies on a cut-out texel of an alpha-tested material.
+inline bool cut_out(const ShadeScene& s, TextureFilter f, std::uint32_t prim, float u, float v) noexcept {
+    const RenderMaterial& m = s.materials->for_triangle(*s.mesh, prim);
+    if (!m.alpha_tested) return false;
+    return m.map_kd->sample_alpha(interpolate_uv(*s.mesh, prim, u, v), f) < 0.5f;
+}
+
+/// Closest-hit and any-hit queries over either vertex layout, with optional alpha testing.
+/// Answers equal intersect_closest / intersect_any (scene/trace.hpp, leaf_triangles.hpp) when
+/// no cut-out is involved.
+template <bool kLeaf, bool kAlpha>
+struct Tracer {
+    const ShadeScene& s;
+    TextureFilter filter;
+
+    RAYKIT_INLINE void verts(std::uint32_t slot, std::uint32_t prim, const vec3*& a, const vec3*& b,
+                             const vec3*& c) const noexcept {
+        if constexpr (kLeaf) {
+            const vec3* v = s.leaf->vertices.data() + 3 * std::size_t(slot);
+            a = v, b = v + 1, c = v + 2;
+        } else {
+            const Triangle& t = s.mesh->triangles[prim];
+            const vec3* pos = s.mesh->positions.data();
+            a = pos + t.v[0], b = pos + t.v[1], c = pos + t.v[2];
+        }
+    }
+
+    template <class Stats = std::nullptr_t>
+    Hit closest(const Ray& ray, Stats stats = nullptr) const {
+        using Test = DefaultTriangleTest;
+        const Test::RayData rd = Test::prepare(ray);
+        const std::uint32_t* RAYKIT_RESTRICT ids = s.bvh->prim_ids.data();
+        Hit hit;
+        float tmax = ray.tmax;
+        traverse<ClosestHit>(
+            *s.bvh, ray, tmax,
+            [&](std::uint32_t first, std::uint32_t count, float& tm) {
+                bool found = false;
+                for (std::uint32_t k = first; k < first + count; ++k) {
+                    const std::uint32_t p = ids[k];
+                    const vec3 *a, *b, *c;
+                    verts(k, p, a, b, c);
+                    TriHit th;
+                    if (Test::intersect(rd, *a, *b, *c, ray.tmin, tm, th) && (th.t < hit.t || p < hit.prim)) {
+                        if constexpr (kAlpha)
+                            if (cut_out(s, filter, p, th.u, th.v)) continue;
+                        hit = {th.t, th.u, th.v, p, 0};
+                        tm = th.t;
+                        found = true;
+                    }
+                }
+                return found;
+            },
+            stats);
+        return hit;
+    }
+
+    bool any(const Ray& ray) const {
+        using Test = DefaultTriangleTest;
+        const Test::RayData rd = Test::prepare(ray);
+        const std::uint32_t* RAYKIT_RESTRICT ids = s.bvh->prim_ids.data();
+        float tmax = ray.tmax;
+        return traverse<AnyHit>(*s.bvh, ray, tmax, [&](std::uint32_t first, std::uint32_t count, float&) {
+            for (std::uint32_t k = first; k < first + count; ++k) {
+                const std::uint32_t p = ids[k];
+                const vec3 *a, *b, *c;
+                verts(k, p, a, b, c);
+                TriHit th;
+                if (Test::intersect(rd, *a, *b, *c, ray.tmin, ray.tmax, th)) {
+                    if constexpr (kAlpha)
+                        if (cut_out(s, filter, p, th.u, th.v)) continue;
+                    return true;
+                }
+            }
+            return false;
+        });
+    }
+};
+
+/// Times a callable into `ticks` (stage_ticks units) when `on`.
+template <class F>
+RAYKIT_INLINE auto timed(bool on, std::uint64_t& ticks, F&& f) {
+    if (!on) return f();
+    const std::uint64_t t0 = stage_ticks();
+    auto r = f();
+    ticks += stage_ticks() - t0;
+    return r;
+}
+
+/// Schlick's approximation with normal-incidence reflectance f0.
+inline vec3 schlick(const vec3& f0, float cos_i) noexcept {
+    const float m = std::clamp(1.0f - cos_i, 0.0f, 1.0f);
+    const float m5 = m * m * m * m * m;
+    return f0 + (vec3(1.0f) - f0) * m5;
+}
+
+/// Exact Fresnel reflectance of an unpolarised ray at a dielectric boundary; eta = n_from / n_to,
+/// cos_i = cosine of the incidence angle (> 0). Writes the cosine of the refraction angle;
+/// returns 1 on total internal reflection.
+inline float fresnel_dielectric(float cos_i, float eta, float& cos_t) noexcept {
+    cos_i = std::clamp(cos_i, 0.0f, 1.0f);
+    const float sin2_t = eta * eta * std::max(0.0f, 1.0f - cos_i * cos_i);
+    if (sin2_t >= 1.0f) {
+        cos_t = 0.0f;
+        return 1.0f;
+    }
+    cos_t = std::sqrt(1.0f - sin2_t);
+    const float rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    const float rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    return 0.5f * (rs * rs + rp * rp);
+}
+
+/// An orthonormal basis (t, b) around unit n (Duff et al. 2017).
+inline void basis(const vec3& n, vec3& t, vec3& b) noexcept {
+    const float sign = std::copysign(1.0f, n.z);
+    const float a = -1.0f / (sign + n.z);
+    const float bb = n.x * n.y * a;
+    t = vec3(1.0f + sign * n.x * n.x * a, sign * bb, -sign * n.x);
+    b = vec3(bb, sign + n.y * n.y * a, -n.y);
+}
+
+}  // namespace detail
+
+/// The surface seen by `ray` at `hit` (which must be valid); `d` is the unit ray direction.
+inline SurfacePoint surface_point(const ShadeScene& s, const Hit& hit, const vec3& d, TextureFilter filter) {
+    const Mesh& m = *s.mesh;
+    const Triangle& t = m.triangles[hit.prim];
+    const float w0 = 1.0f - hit.u - hit.v;
+    const vec3 &p0 = m.positions[t.v[0]], &p1 = m.positions[t.v[1]], &p2 = m.positions[t.v[2]];
+    SurfacePoint sp;
+    sp.p = p0 * w0 + p1 * hit.u + p2 * hit.v;
+    vec3 ng = glm::cross(p1 - p0, p2 - p0);
+    const float lg = glm::length(ng);
+    ng = lg > 0.0f && std::isfinite(lg) ? ng / lg : -d;
+    bool entering = glm::dot(ng, d) < 0.0f;
+    vec3 ns = ng;
+    if (!m.normals.empty()) {
+        const vec3 n = m.normals[t.v[0]] * w0 + m.normals[t.v[1]] * hit.u + m.normals[t.v[2]] * hit.v;
+        const float ln = glm::length(n);
+        if (ln > 1e-12f && std::isfinite(ln)) {
+            ns = n / ln;
+            entering = glm::dot(ns, d) < 0.0f;
+        }
+    }
+    sp.entering = entering;
+    sp.ng = glm::dot(ng, d) > 0.0f ? -ng : ng;
+    sp.ns = glm::dot(ns, d) > 0.0f ? -ns : ns;
+    sp.uv = detail::interpolate_uv(m, hit.prim, hit.u, hit.v);
+    sp.material = &s.materials->for_triangle(m, hit.prim);
+    sp.base = sp.material->kd;
+    if (sp.material->map_kd) sp.base *= vec3(sp.material->map_kd->sample(sp.uv, filter));
+    return sp;
+}
+
+namespace detail {
+
+template <bool kLeaf, bool kAlpha>
+SampleResult shade_impl(const ShadeScene& s, const ShadeSettings& set, const Ray& camera_ray, SampleRng& rng,
+                        ShadeCounters& cnt, PathScratch& scratch) {
+    const Tracer<kLeaf, kAlpha> tr{s, set.filter};
+    const bool tm = cnt.time_stages;
+    SampleResult res;
+    res.color = set.background;
+    ++cnt.rays.primary;
+
+    // ---- first-hit shaders
+    if (set.shader != ShaderKind::whitted) {
+        Hit h;
+        if (set.shader == ShaderKind::debug_cost) {
+            TraversalStats st;
+            h = timed(tm, cnt.times.trace_ticks, [&] { return tr.closest(camera_ray, &st); });
+            res.cost = float(st.nodes + st.leaves);
+            cnt.traversal_steps += st.nodes + st.leaves;
+            res.color = vec3(res.cost);
+            res.alpha = h.valid() ? 1.0f : 0.0f;
+            return res;
+        }
+        h = timed(tm, cnt.times.trace_ticks, [&] { return tr.closest(camera_ray); });
+        if (!h.valid()) return res;
+        res.alpha = 1.0f;
+        const float dl = glm::length(camera_ray.dir);
+        const vec3 d = camera_ray.dir / dl;
+        const SurfacePoint sp = surface_point(s, h, d, set.filter);
+        if (set.shader == ShaderKind::normals) {
+            res.color = sp.ns * 0.5f + vec3(0.5f);
+        } else if (set.shader == ShaderKind::depth) {
+            float far = set.depth_far;
+            if (!(far > 0.0f)) {
+                far = 0.0f;
+                for (int c = 0; c < 8; ++c) {
+                    const vec3 corner((c & 1) ? s.bounds.max.x : s.bounds.min.x,
+                                      (c & 2) ? s.bounds.max.y : s.bounds.min.y,
+                                      (c & 4) ? s.bounds.max.z : s.bounds.min.z);
+                    far = std::max(far, glm::length(corner - camera_ray.org));
+                }
+            }
+            const float dist = h.t * dl;
+            res.color = vec3(far > 0.0f ? std::clamp(1.0f - dist / far, 0.0f, 1.0f) : 0.0f);
+        } else {  // ao
+            float radius = set.ao_radius;
+            if (!(radius > 0.0f)) radius = 0.1f * glm::length(s.bounds.extent());
+            if (!(radius > 0.0f)) radius = kInf;
+            const vec3 org = offset_ray_origin(sp.p, sp.ng);
+            vec3 tb, bb;
+            basis(sp.ns, tb, bb);
+            unsigned open = 0;
+            for (unsigned i = 0; i < set.ao_samples; ++i) {
+                const float u1 = rng.next_float(), u2 = rng.next_float();
+                const float r = std::sqrt(u1), phi = 6.28318530717958647692f * u2;
+                const vec3 dir = tb * (r * std::cos(phi)) + bb * (r * std::sin(phi)) + sp.ns * std::sqrt(1.0f - u1);
+                if (!(glm::dot(dir, sp.ng) > 0.0f)) continue;  // below the geometric surface: occluded
+                ++cnt.rays.ao;
+                const Ray ar{org, 0.0f, dir, radius};
+                if (!timed(tm, cnt.times.shadow_ticks, [&] { return tr.any(ar); })) ++open;
+            }
+            res.color = vec3(set.ao_samples ? float(open) / float(set.ao_samples) : 1.0f);
+        }
+        return res;
+    }
+
+    // ---- Whitted: an explicit stack of pending rays (a tree of at most 2 children per hit)
+    using Kind = PathScratch::Kind;
+    auto& stack = scratch.stack;
+    stack.clear();
+    stack.push_back({camera_ray, vec3(1.0f), 0u, Kind::primary});
+    vec3 L(0.0f);
+    while (!stack.empty()) {
+        const PathScratch::Item it = stack.back();
+        stack.pop_back();
+        if (it.kind == Kind::reflection) ++cnt.rays.reflection;
+        if (it.kind == Kind::refraction) ++cnt.rays.refraction;
+        cnt.deepest = std::max(cnt.deepest, it.depth);
+        const Hit h = timed(tm, cnt.times.trace_ticks, [&] { return tr.closest(it.ray); });
+        if (!h.valid()) {
+            L += it.weight * set.background;
+            continue;
+        }
+        if (it.kind == Kind::primary) res.alpha = 1.0f;
+        const vec3 d = glm::normalize(it.ray.dir);
+        const SurfacePoint sp = surface_point(s, h, d, set.filter);
+        const RenderMaterial& mat = *sp.material;
+        const float opaque = 1.0f - mat.transparency;
+
+        vec3 diffuse = set.ambient * sp.base;
+        vec3 specular(0.0f);
+        if (!s.lights.empty()) {
+            const vec3 org = offset_ray_origin(sp.p, sp.ng);
+            const bool want_spec = detail::max3(mat.ks) > 0.0f;
+            for (const Light& l : s.lights) {
+                vec3 ldir;
+                float tmax = kInf;
+                if (l.type == Light::Type::point) {
+                    const vec3 to = l.position - org;
+                    const float dist = glm::length(to);
+                    if (!(dist > 0.0f)) continue;
+                    ldir = to / dist;
+                    tmax = dist * (1.0f - 1e-4f);
+                } else {
+                    const float ll = glm::length(l.direction);
+                    if (!(ll > 0.0f)) continue;
+                    ldir = -l.direction / ll;
+                }
+                const float nl = glm::dot(sp.ns, ldir);
+                if (!(nl > 0.0f) || !(glm::dot(sp.ng, ldir) > 0.0f)) continue;
+                if (set.shadows) {
+                    ++cnt.rays.shadow;
+                    const Ray sr{org, 0.0f, ldir, tmax};
+                    if (timed(tm, cnt.times.shadow_ticks, [&] { return tr.any(sr); })) continue;
+                }
+                diffuse += sp.base * (nl * l.color);
+                if (want_spec) {
+                    const vec3 hv = glm::normalize(ldir - d);
+                    const float nh = std::max(0.0f, glm::dot(sp.ns, hv));
+                    specular += mat.ks * (std::pow(nh, mat.ns) * l.color);
+                }
+            }
+        }
+        L += it.weight * (mat.ke + opaque * diffuse + specular);
+
+        if (it.depth >= set.max_depth) continue;
+        const float cos_i = std::max(0.0f, -glm::dot(d, sp.ns));
+        vec3 refl = mat.mirror;
+        if (mat.fresnel_mirror && detail::max3(mat.mirror) > 0.0f) refl = detail::schlick(mat.mirror, cos_i);
+        float trans = 0.0f;
+        vec3 tdir(0.0f);
+        if (mat.transparency > 0.0f) {
+            const float eta = sp.entering ? 1.0f / mat.ni : mat.ni;
+            float cos_t = 0.0f;
+            const float F = detail::fresnel_dielectric(cos_i, eta, cos_t);
+            refl += vec3(mat.transparency * F);
+            if (F < 1.0f) {
+                trans = mat.transparency * (1.0f - F);
+                tdir = d * eta + sp.ns * (eta * cos_i - cos_t);
+                if (!(glm::dot(tdir, sp.ng) < 0.0f)) {  // the shading normal bent it back: use ng
+                    const float ci = std::max(0.0f, -glm::dot(d, sp.ng));
+                    const float s2 = eta * eta * std::max(0.0f, 1.0f - ci * ci);
+                    if (s2 < 1.0f) tdir = d * eta + sp.ng * (eta * ci - std::sqrt(1.0f - s2));
+                    else trans = 0.0f;
+                }
+            }
+        }
+        const vec3 wt = it.weight * trans;
+        if (trans > 0.0f && detail::max3(wt) > set.min_weight) {
+            const Ray rr{offset_ray_origin(sp.p, -sp.ng), 0.0f, glm::normalize(tdir), kInf};
+            stack.push_back({rr, wt, it.depth + 1, Kind::refraction});
+        }
+        const vec3 wr = it.weight * refl;
+        if (detail::max3(wr) > set.min_weight) {
+            vec3 rdir = d - sp.ns * (2.0f * glm::dot(d, sp.ns));
+            if (!(glm::dot(rdir, sp.ng) > 0.0f)) rdir = d - sp.ng * (2.0f * glm::dot(d, sp.ng));
+            const Ray rr{offset_ray_origin(sp.p, sp.ng), 0.0f, rdir, kInf};
+            stack.push_back({rr, wr, it.depth + 1, Kind::reflection});
+        }
+    }
+    res.color = L;
+    return res;
+}
+
+}  // namespace detail
+
+/// Shades one camera ray (see the header comment). `scene` from make_shade_scene.
+inline SampleResult shade_ray(const ShadeScene& scene, const ShadeSettings& settings, const Ray& camera_ray,
+                              SampleRng& rng, ShadeCounters& counters, PathScratch& scratch) {
+    if (!scene.mesh || !scene.bvh || !scene.materials)
+        throw std::invalid_argument("raykit::shade_ray: incomplete ShadeScene (use make_shade_scene)");
+    const bool leaf = scene.leaf != nullptr, alpha = scene.alpha_testing;
+    if (leaf && alpha) return detail::shade_impl<true, true>(scene, settings, camera_ray, rng, counters, scratch);
+    if (leaf) return detail::shade_impl<true, false>(scene, settings, camera_ray, rng, counters, scratch);
+    if (alpha) return detail::shade_impl<false, true>(scene, settings, camera_ray, rng, counters, scratch);
+    return detail::shade_impl<false, false>(scene, settings, camera_ray, rng, counters, scratch);
+}
+
+/// Closest hit of `ray` as the shaders see it (alpha cut-outs skipped).
+inline Hit shade_closest_hit(const ShadeScene& scene, const Ray& ray, TextureFilter filter = TextureFilter::bilinear) {
+    if (scene.alpha_testing) return detail::Tracer<false, true>{scene, filter}.closest(ray);
+    return detail::Tracer<false, false>{scene, filter}.closest(ray);
+}
+
+}  // namespace raykit

@@ -1,0 +1,477 @@
+// Bottom-up builders (pairwise, sort-by-axis, PLOC) against brute force, the
+// O(n²) pairwise reference, thread-count independence and the depth bound.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <functional>
+#include <random>
+#include <string>
+
+#include "raykit.hpp"
+#include "raykit/scene/generate.hpp"
+
+using namespace raykit;
+
+#if defined(__SANITIZE_ADDRESS__)
+#define RAYKIT_TEST_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define RAYKIT_TEST_SANITIZED 1
+#endif
+#endif
+#ifndef RAYKIT_TEST_SANITIZED
+#define RAYKIT_TEST_SANITIZED 0
+#endif
+
+namespace {
+
+/// Problem sizes: smaller under the sanitizers (about ten times slower).
+constexpr bool kSanitized = RAYKIT_TEST_SANITIZED != 0;
+constexpr std::size_t scaled(std::size_t release, std::size_t sanitized) { return kSanitized ? sanitized : release; }
+
+using BuildFn = std::function<Bvh(std::span<const AABB>, std::span<const vec3>, unsigned threads, unsigned leaf)>;
+
+struct Setting {
+    std::string name;
+    BuildFn build;
+};
+
+std::vector<Setting> all_settings() {
+    std::vector<Setting> s;
+    using PM = PairwiseBuilder::Config::Metric;
+    for (PM metric : {PM::centre, PM::area})
+        s.push_back({std::string("pairwise/") + (metric == PM::centre ? "centre" : "area"),
+                     [metric](std::span<const AABB> b, std::span<const vec3> c, unsigned threads, unsigned leaf) {
+                         PairwiseBuilder::Config cfg;
+                         cfg.metric = metric;
+                         cfg.threads = threads;
+                         cfg.max_leaf_size = leaf;
+                         return PairwiseBuilder::build(b, c, cfg);
+                     }});
+    using SA = SortAxisBuilder::Config::Axis;
+    using SM = SortAxisBuilder::Config::Metric;
+    for (SA axis : {SA::x, SA::longest, SA::morton})
+        for (SM metric : {SM::centre, SM::area})
+            for (unsigned w : {1u, 2u, 6u, 32u}) {
+                const std::string name = std::string("sortaxis/") +
+                                         (axis == SA::x ? "x" : axis == SA::longest ? "longest" : "morton") + "/" +
+                                         (metric == SM::centre ? "centre" : "area") + "/W" + std::to_string(w);
+                s.push_back({name, [axis, metric, w](std::span<const AABB> b, std::span<const vec3> c, unsigned threads,
+                                                     unsigned leaf) {
+                                 SortAxisBuilder::Config cfg;
+                                 cfg.axis = axis;
+                                 cfg.metric = metric;
+                                 cfg.window = w;
+                                 cfg.threads = threads;
+                                 cfg.max_leaf_size = leaf;
+                                 return SortAxisBuilder::build(b, c, cfg);
+                             }});
+            }
+    for (unsigned r : {1u, 8u, 32u})
+        s.push_back({"ploc/R" + std::to_string(r),
+                     [r](std::span<const AABB> b, std::span<const vec3> c, unsigned threads, unsigned leaf) {
+                         PlocBuilder::Config cfg;
+                         cfg.radius = r;
+                         cfg.threads = threads;
+                         cfg.max_leaf_size = leaf;
+                         return PlocBuilder::build(b, c, cfg);
+                     }});
+    return s;
+}
+
+/// One setting per builder (their defaults), for the more expensive tests.
+std::vector<Setting> default_settings() {
+    return {
+        {"pairwise", [](std::span<const AABB> b, std::span<const vec3> c, unsigned threads, unsigned leaf) {
+             PairwiseBuilder::Config cfg;
+             cfg.threads = threads;
+             cfg.max_leaf_size = leaf;
+             return PairwiseBuilder::build(b, c, cfg);
+         }},
+        {"sortaxis", [](std::span<const AABB> b, std::span<const vec3> c, unsigned threads, unsigned leaf) {
+             SortAxisBuilder::Config cfg;
+             cfg.threads = threads;
+             cfg.max_leaf_size = leaf;
+             return SortAxisBuilder::build(b, c, cfg);
+         }},
+        {"ploc", [](std::span<const AABB> b, std::span<const vec3> c, unsigned threads, unsigned leaf) {
+             PlocBuilder::Config cfg;
+             cfg.threads = threads;
+             cfg.max_leaf_size = leaf;
+             return PlocBuilder::build(b, c, cfg);
+         }},
+    };
+}
+
+/// Random rays: origins in the box grown by 50 %, directions uniform; half of
+/// them aimed at a triangle vertex or edge midpoint (the hard cases).
+std::vector<Ray> random_rays(const Mesh& m, std::size_t n, std::uint64_t seed) {
+    AABB box;
+    for (const vec3& p : m.positions)
+        if (is_finite(p)) box.grow(p);
+    if (box.is_empty()) box = {vec3(-1), vec3(1)};
+    const vec3 c = box.center(), e = box.extent() * 0.75f + vec3(1e-3f);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+    std::vector<Ray> rays(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        Ray& r = rays[i];
+        r.org = c + vec3(U(rng), U(rng), U(rng)) * e;
+        if (i % 2 && !m.triangles.empty()) {
+            const Triangle& t = m.triangles[rng() % m.triangles.size()];
+            const vec3 a = m.positions[t.v[0]], b = m.positions[t.v[1]];
+            r.dir = (i % 4 == 1 ? a : (a + b) * 0.5f) - r.org;
+        } else {
+            r.dir = vec3(U(rng), U(rng), U(rng));
+        }
+    }
+    return rays;
+}
+
+/// A mesh, its primitive refs, rays and the brute-force answers (computed
+/// once, shared by every builder).
+struct Scene {
+    std::string name;
+    Mesh mesh;
+    PrimitiveRefs refs;
+    std::vector<Ray> rays;
+    std::vector<Hit> oracle;
+
+    Scene(std::string nm, Mesh m, std::size_t nrays, std::uint64_t seed) : name(std::move(nm)), mesh(std::move(m)) {
+        refs = primitive_refs(mesh);
+        rays = random_rays(mesh, nrays, seed);
+        oracle.reserve(rays.size());
+        for (const Ray& r : rays) oracle.push_back(brute_force_closest(mesh, r));
+    }
+};
+
+void expect_valid(const Scene& s, const Bvh& bvh, const std::string& what, unsigned leaf = 8) {
+    EXPECT_EQ(validate(bvh, s.refs.boxes), "") << what << " over " << s.name;
+    EXPECT_LE(bvh.depth(), RAYKIT_BVH_MAX_DEPTH) << what << " over " << s.name;
+    for (const Node& n : bvh.nodes) {
+        if (n.is_leaf()) {
+            EXPECT_LE(n.count, std::max(1u, leaf)) << what << " over " << s.name;
+        }
+    }
+    // the layout is exactly the compact pre-order one
+    const std::vector<Node> tmp(bvh.nodes.begin(), bvh.nodes.end());
+    const NodeArray again = detail::compact_preorder(tmp);
+    ASSERT_EQ(again.size(), bvh.nodes.size()) << what;
+    EXPECT_EQ(std::memcmp(again.data(), bvh.nodes.data(), again.size() * sizeof(Node)), 0)
+        << what << " over " << s.name << ": not in compact pre-order";
+}
+
+/// Closest and any-hit queries equal the brute-force oracle on every ray.
+void expect_matches_brute_force(const Scene& s, const Bvh& bvh, const std::string& what) {
+    std::size_t bad = 0;
+    for (std::size_t i = 0; i < s.rays.size(); ++i) {
+        const Hit h = intersect_closest(s.mesh, bvh, s.rays[i]);
+        const Hit& o = s.oracle[i];
+        const bool any = intersect_any(s.mesh, bvh, s.rays[i]);
+        if (h.prim != o.prim || h.t != o.t || any != o.valid()) {
+            if (++bad <= 3)
+                ADD_FAILURE() << what << " over " << s.name << ", ray " << i << ": bvh prim " << h.prim << " t "
+                              << h.t << " any " << any << ", brute force prim " << o.prim << " t " << o.t;
+        }
+    }
+    EXPECT_EQ(bad, 0u) << what << " over " << s.name << ", of " << s.rays.size() << " rays";
+}
+
+bool same_tree(const Bvh& a, const Bvh& b) {
+    return a.nodes.size() == b.nodes.size() && a.prim_ids == b.prim_ids &&
+           std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(Node)) == 0;
+}
+
+Mesh mesh_of_triangles(const std::vector<std::array<vec3, 3>>& tris) {
+    Mesh m;
+    for (const auto& t : tris) {
+        const auto base = static_cast<std::uint32_t>(m.positions.size());
+        for (const vec3& p : t) m.positions.push_back(p);
+        m.triangles.push_back({{base, base + 1, base + 2}});
+    }
+    m.material_ids.assign(m.triangles.size(), kNoMaterial);
+    return m;
+}
+
+/// Triangles shrinking geometrically towards a point (as in test_bvh).
+Mesh geometric_progression(int count) {
+    Mesh m;
+    float s = 1.0f;
+    for (int i = 0; i < count; ++i) {
+        const auto base = static_cast<std::uint32_t>(m.positions.size());
+        const float x = s;
+        m.positions.push_back({x, 0.0f, 0.0f});
+        m.positions.push_back({x + s * 0.5f, s * 0.5f, 0.0f});
+        m.positions.push_back({x, s * 0.5f, s * 0.5f});
+        m.triangles.push_back({{base, base + 1, base + 2}});
+        s *= (i < 120 ? 0.5f : 0.999f);
+        if (s < 1e-30f) s = 1e-30f;
+    }
+    m.material_ids.assign(m.triangles.size(), kNoMaterial);
+    return m;
+}
+
+/// A soup plus needles, zero-area, NaN and inf triangles (the last 50 are
+/// non-finite and must never be hit).
+Mesh degenerate_mesh(std::size_t soup) {
+    Mesh m = make_random_soup(soup, 3, 0.1f);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (int i = 0; i < 300; ++i) {
+        const auto base = static_cast<std::uint32_t>(m.positions.size());
+        const vec3 p(float(i) / 300.0f, 0.5f, 0.5f);
+        m.positions.push_back(p);
+        m.positions.push_back(p + vec3(0.3f, 1e-7f, 0.0f));
+        m.positions.push_back(i % 2 ? p : p + vec3(0.6f, 2e-7f, 0.0f));
+        m.triangles.push_back({{base, base + 1, base + 2}});
+    }
+    for (int i = 0; i < 50; ++i) {
+        const auto base = static_cast<std::uint32_t>(m.positions.size());
+        m.positions.push_back({nan, 0.5f, 0.5f});
+        m.positions.push_back({0.2f, i % 2 ? kInf : nan, 0.5f});
+        m.positions.push_back({0.5f, 0.5f, 0.5f});
+        m.triangles.push_back({{base, base + 1, base + 2}});
+    }
+    m.material_ids.assign(m.triangles.size(), kNoMaterial);
+    return m;
+}
+
+}  // namespace
+
+TEST(Builders, EverySettingMatchesBruteForceOnSoupsAndATorus) {
+    const std::size_t rays = scaled(600, 200);
+    std::vector<Scene> scenes;
+    scenes.emplace_back("soup 1", make_random_soup(scaled(3000, 1000), 1, 0.05f), rays, 11);
+    scenes.emplace_back("soup 2", make_random_soup(scaled(1500, 600), 2, 0.2f), rays, 12);
+    scenes.emplace_back("torus", make_bumpy_torus(scaled(20000, 4000)), rays, 13);
+    for (const Setting& st : all_settings())
+        for (const Scene& sc : scenes)
+            for (unsigned leaf : {1u, 8u}) {
+                const std::string what = st.name + " leaf " + std::to_string(leaf);
+                const Bvh bvh = st.build(sc.refs.boxes, sc.refs.centers, 0, leaf);
+                expect_valid(sc, bvh, what, leaf);
+                expect_matches_brute_force(sc, bvh, what);
+            }
+}
+
+TEST(Builders, SameTreeForOneTwoAndSevenThreads) {
+    // big enough that every parallel pass runs in several chunks
+    const Mesh torus = make_bumpy_torus(scaled(80000, 40000));
+    const Mesh soup = make_random_soup(scaled(50000, 30000), 9, 0.02f);
+    for (const Mesh* m : {&torus, &soup}) {
+        const PrimitiveRefs r = primitive_refs(*m);
+        for (const Setting& st : all_settings()) {
+            const Bvh a = st.build(r.boxes, r.centers, 1, 8);
+            const Bvh b = st.build(r.boxes, r.centers, 2, 8);
+            const Bvh c = st.build(r.boxes, r.centers, 7, 8);
+            EXPECT_TRUE(same_tree(a, b)) << st.name << ": 1 vs 2 threads, " << m->triangle_count() << " triangles";
+            EXPECT_TRUE(same_tree(a, c)) << st.name << ": 1 vs 7 threads, " << m->triangle_count() << " triangles";
+            EXPECT_EQ(validate(a, r.boxes), "") << st.name;
+        }
+    }
+}
+
+TEST(Builders, PairwiseEqualsTheQuadraticReference) {
+    using PM = PairwiseBuilder::Config::Metric;
+    std::vector<std::pair<std::string, Mesh>> meshes;
+    for (std::uint64_t seed = 1; seed <= 4; ++seed)
+        for (std::size_t n : {1u, 2u, 3u, 5u, 17u, 65u, 200u, 700u})
+            meshes.emplace_back("soup " + std::to_string(n) + "/" + std::to_string(seed),
+                                make_random_soup(n, seed * 100 + n, 0.02f + 0.05f * float(seed)));
+    meshes.emplace_back("soup 2000", make_random_soup(scaled(2000, 1000), 77, 0.05f));
+    meshes.emplace_back("torus 2000", make_bumpy_torus(scaled(2000, 1000)));
+    // exact ties: a regular grid of equal triangles, and coincident triangles
+    {
+        std::vector<std::array<vec3, 3>> grid, same;
+        for (int i = 0; i < 12; ++i)
+            for (int j = 0; j < 12; ++j)
+                for (int k = 0; k < 6; ++k) {
+                    const vec3 p{float(i), float(j), float(k)};
+                    grid.push_back({p, p + vec3(0.5f, 0, 0), p + vec3(0, 0.5f, 0)});
+                }
+        for (int i = 0; i < 300; ++i) same.push_back({vec3(0), vec3(1, 0, 0), vec3(0, 1, 0)});
+        meshes.emplace_back("grid", mesh_of_triangles(grid));
+        meshes.emplace_back("coincident", mesh_of_triangles(same));
+    }
+    meshes.emplace_back("degenerate", degenerate_mesh(scaled(600, 300)));
+    for (const auto& [name, m] : meshes) {
+        const PrimitiveRefs r = primitive_refs(m);
+        for (PM metric : {PM::centre, PM::area})
+            for (unsigned leaf : {1u, 8u}) {
+                PairwiseBuilder::Config cfg;
+                cfg.metric = metric;
+                cfg.max_leaf_size = leaf;
+                const Bvh fast = PairwiseBuilder::build(r.boxes, r.centers, cfg);
+                const Bvh ref = PairwiseBuilder::build_reference(r.boxes, r.centers, cfg);
+                EXPECT_TRUE(same_tree(fast, ref)) << name << ", metric " << (metric == PM::centre ? "centre" : "area")
+                                                  << ", leaf " << leaf;
+                EXPECT_EQ(validate(fast, r.boxes), "") << name;
+            }
+    }
+}
+
+TEST(Builders, EmptyAndTinyInputs) {
+    for (const Setting& st : all_settings()) {
+        const Bvh e = st.build({}, {}, 0, 8);
+        EXPECT_TRUE(e.nodes.empty()) << st.name;
+        EXPECT_TRUE(e.prim_ids.empty()) << st.name;
+        for (std::size_t n : {1u, 2u, 3u}) {
+            const Scene s("soup " + std::to_string(n), make_random_soup(n, 5 + n, 0.3f), 300, n);
+            for (unsigned leaf : {1u, 8u}) {
+                const Bvh bvh = st.build(s.refs.boxes, s.refs.centers, 0, leaf);
+                expect_valid(s, bvh, st.name, leaf);
+                expect_matches_brute_force(s, bvh, st.name);
+            }
+        }
+    }
+}
+
+TEST(Builders, CoincidentCentroidsAndIdenticalTriangles) {
+    std::vector<std::array<vec3, 3>> same, rotated;
+    for (int i = 0; i < 1000; ++i) same.push_back({vec3(0), vec3(1, 0, 0), vec3(0, 1, 0)});
+    for (int i = 0; i < 300; ++i) {
+        const float a = 0.01f * float(i);
+        std::array<vec3, 3> t;
+        for (int k = 0; k < 3; ++k) {
+            const float b = a + 2.0943951f * float(k);
+            t[k] = {std::cos(b), std::sin(b), 0.001f * float(i)};
+        }
+        rotated.push_back(t);
+    }
+    const Scene s1("identical", mesh_of_triangles(same), 300, 1);
+    const Scene s2("rotated", mesh_of_triangles(rotated), 600, 3);
+    for (const Setting& st : all_settings())
+        for (const Scene* s : {&s1, &s2})
+            for (unsigned leaf : {1u, 4u}) {
+                const Bvh bvh = st.build(s->refs.boxes, s->refs.centers, 0, leaf);
+                expect_valid(*s, bvh, st.name, leaf);
+                expect_matches_brute_force(*s, bvh, st.name);
+            }
+    // ties go to the smallest index whatever the tree
+    const Ray r{{0.2f, 0.2f, 1.0f}, 0.0f, {0, 0, -1}, kInf};
+    for (const Setting& st : default_settings()) {
+        const Bvh bvh = st.build(s1.refs.boxes, s1.refs.centers, 0, 4);
+        EXPECT_EQ(intersect_closest(s1.mesh, bvh, r).prim, 0u) << st.name;
+    }
+}
+
+TEST(Builders, DegenerateNeedleAndNanTrianglesBuildValidTrees) {
+    const Scene s("degenerate", degenerate_mesh(scaled(2000, 800)), scaled(1500, 400), 5);
+    const auto finite = static_cast<std::uint32_t>(s.mesh.triangle_count() - 50);
+    for (const Setting& st : all_settings()) {
+        const Bvh bvh = st.build(s.refs.boxes, s.refs.centers, 0, 8);
+        expect_valid(s, bvh, st.name);
+        expect_matches_brute_force(s, bvh, st.name);
+        for (const Ray& r : s.rays) {
+            const Hit h = intersect_closest(s.mesh, bvh, r);
+            if (h.valid()) {
+                EXPECT_LT(h.prim, finite) << st.name << ": a NaN triangle was hit";
+            }
+        }
+    }
+    // all primitives non-finite: still one valid tree
+    Mesh bad;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (int i = 0; i < 40; ++i) {
+        const auto base = static_cast<std::uint32_t>(bad.positions.size());
+        bad.positions.push_back({nan, 0, 0});
+        bad.positions.push_back({0, kInf, 0});
+        bad.positions.push_back({0, 0, -kInf});
+        bad.triangles.push_back({{base, base + 1, base + 2}});
+    }
+    const PrimitiveRefs r = primitive_refs(bad);
+    for (const Setting& st : default_settings()) {
+        EXPECT_EQ(validate(st.build(r.boxes, r.centers, 0, 8), r.boxes), "") << st.name;
+        EXPECT_EQ(validate(st.build(r.boxes, r.centers, 0, 1), r.boxes), "") << st.name;
+    }
+}
+
+/// The deepest layout test_bvh knows: every builder stays within the bound
+/// (PLOC merges chains here; the depth pass must cut them).
+TEST(Builders, GeometricProgressionStaysWithinTheDepthBound) {
+    const Scene s("geometric progression", geometric_progression(4000), scaled(800, 300), 2);
+    std::vector<Setting> settings = default_settings();
+    for (const Setting& st : all_settings())
+        if (st.name.rfind("ploc", 0) == 0 || st.name.find("/W32") != std::string::npos) settings.push_back(st);
+    for (const Setting& st : settings)
+        for (unsigned leaf : {1u, 8u}) {
+            const Bvh bvh = st.build(s.refs.boxes, s.refs.centers, 0, leaf);
+            expect_valid(s, bvh, st.name, leaf);
+            EXPECT_LE(bvh.depth(), RAYKIT_BVH_MAX_DEPTH) << st.name;
+            std::printf("[ info ] geometric progression, %s leaf %u: depth %d\n", st.name.c_str(), leaf, bvh.depth());
+            expect_matches_brute_force(s, bvh, st.name);
+        }
+}
+
+/// The depth pass on its own: a caterpillar merge tree (each node one
+/// primitive plus the rest) of 5000 levels is cut to the bound.
+TEST(Builders, DepthPassCutsADegenerateMergeTree) {
+    for (std::uint32_t n : {65u, 66u, 200u, 5000u}) {
+        const Scene s("caterpillar", make_random_soup(n, n, 0.05f), 200, n);
+        const PrimitiveRefs& r = s.refs;
+        for (bool left_deep : {false, true}) {
+            detail::MergeTree t;
+            t.prims = n;
+            std::uint32_t cur = 0;
+            for (std::uint32_t i = 1; i < n; ++i) {
+                t.kids.push_back(left_deep ? std::array<std::uint32_t, 2>{cur, i} : std::array<std::uint32_t, 2>{i, cur});
+                cur = n + static_cast<std::uint32_t>(t.kids.size() - 1);
+                t.close_batch();
+            }
+            t.root = cur;
+            for (unsigned leaf : {1u, 8u}) {
+                detail::MergeTree copy = t;
+                const Bvh bvh = detail::finish_bottom_up(copy, r.boxes, r.centers, {leaf, 1.0f, 1.0f}, 2);
+                EXPECT_EQ(validate(bvh, r.boxes), "") << n << " left " << left_deep;
+                EXPECT_LE(bvh.depth(), RAYKIT_BVH_MAX_DEPTH) << n;
+                expect_matches_brute_force(s, bvh, "caterpillar " + std::to_string(n));
+            }
+        }
+    }
+}
+
+TEST(Builders, InvalidInputThrows) {
+    const PrimitiveRefs r = primitive_refs(make_random_soup(10, 1, 0.1f));
+    const std::span<const vec3> short_centers(r.centers.data(), 9);
+    EXPECT_THROW(PairwiseBuilder::build(r.boxes, short_centers), std::invalid_argument);
+    EXPECT_THROW(SortAxisBuilder::build(r.boxes, short_centers), std::invalid_argument);
+    EXPECT_THROW(PlocBuilder::build(r.boxes, short_centers), std::invalid_argument);
+    SortAxisBuilder::Config sc;
+    sc.window = 0;
+    EXPECT_THROW(SortAxisBuilder::build(r.boxes, r.centers, sc), std::invalid_argument);
+    PlocBuilder::Config pc;
+    pc.radius = 0;
+    EXPECT_THROW(PlocBuilder::build(r.boxes, r.centers, pc), std::invalid_argument);
+}
+
+TEST(Builders, BuildBvhTakesEveryBuilder) {
+    const Scene s("torus", make_bumpy_torus(5000), 300, 4);
+    const Bvh a = build_bvh<PairwiseBuilder>(s.mesh, {});
+    const Bvh b = build_bvh<SortAxisBuilder>(s.mesh, {});
+    const Bvh c = build_bvh<PlocBuilder>(s.mesh, {});
+    for (const Bvh* bvh : {&a, &b, &c}) {
+        expect_valid(s, *bvh, "build_bvh");
+        expect_matches_brute_force(s, *bvh, "build_bvh");
+    }
+}
+
+/// Printed, not asserted: SAH cost of each builder relative to binned SAH.
+TEST(Builders, SahCostRelativeToBinnedSah) {
+    const Mesh m = make_bumpy_torus(scaled(100000, 20000));
+    const PrimitiveRefs r = primitive_refs(m);
+    const double ref = sah_cost(BinnedSahBuilder::build(r.boxes, r.centers));
+    std::printf("[ info ] SAH cost relative to binned SAH (%.3f), torus of %zu triangles:\n", ref,
+                m.triangle_count());
+    std::vector<Setting> settings = default_settings();
+    for (const Setting& st : all_settings())
+        if (st.name.find("/W6") != std::string::npos || st.name.find("/W32") != std::string::npos ||
+            st.name.rfind("ploc", 0) == 0 || st.name.rfind("pairwise", 0) == 0)
+            settings.push_back(st);
+    for (const Setting& st : settings) {
+        const Bvh bvh = st.build(r.boxes, r.centers, 0, 8);
+        const double c = sah_cost(bvh);
+        EXPECT_GT(c, 0.0) << st.name;
+        std::printf("[ info ]   %-28s %8.3f  (%.3fx)\n", st.name.c_str(), c, c / ref);
+    }
+}
