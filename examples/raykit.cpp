@@ -30,6 +30,9 @@
 
 #include "cli_render.hpp"
 #include "cli_skin.hpp"
+#if RAYKIT_CLI_HAVE_CL
+#include "cli_device.hpp"
+#endif
 
 namespace {
 
@@ -42,7 +45,9 @@ struct UsageError : std::runtime_error {
 
 constexpr const char* kUsage = R"(usage:
   raykit info SCENE.obj [--builder NAME] [--window W] [--axis A] [--metric M] [--radius R] [--leaf N] [--threads T] [--json]
-  raykit trace SCENE.obj RAYS.txt HITS.txt [--builder NAME] [--any-hit] [--test watertight|mt|thesis] [--threads T]
+  raykit info --device         lists OpenCL platforms and devices, and which one raykit picks and why
+  raykit animate-test SCENE.obj [--frames N]   a "wave" vertex hook moves a dynamic copy each frame: refit, TLAS, trace, device and CPU
+  raykit trace SCENE.obj RAYS.txt HITS.txt [--builder NAME] [--any-hit] [--test watertight|mt|thesis] [--threads T] [--device cpu|cl]
   raykit check SCENE.obj [--rays N] [--seed S] [--builder NAME] [--test watertight|mt|thesis] [--threads T]
   raykit generate torus|icosphere|soup OUT.obj [--tris N] [--seed S]
   raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu]
@@ -152,7 +157,15 @@ Mesh load_scene(const std::string& path) {
 }
 
 int cmd_info(int argc, char** argv) {
-    Args a(argc, argv, 2, with_tree_flags({}), {"--json"});
+    Args a(argc, argv, 2, with_tree_flags({}), {"--json", "--device"});
+    if (a.has("--device") && a.pos.empty()) {
+#if RAYKIT_CLI_HAVE_CL
+        raykit_cli_print_devices();
+        return 0;
+#else
+        throw std::runtime_error("this raykit was built without OpenCL (install ocl-icd-opencl-dev, opencl-clhpp-headers and pocl-opencl-icd, then rebuild)");
+#endif
+    }
     if (a.pos.size() != 1) throw UsageError("info takes one SCENE.obj");
     const BuildOptions t = tree_options(a);
     const Mesh mesh = load_scene(a.pos[0]);
@@ -243,10 +256,13 @@ std::vector<Ray> read_rays(const std::string& file) {
 }
 
 int cmd_trace(int argc, char** argv) {
-    Args a(argc, argv, 2, with_tree_flags({"--test"}), {"--any-hit"});
+    Args a(argc, argv, 2, with_tree_flags({"--test", "--device"}), {"--any-hit"});
     if (a.pos.size() != 3) throw UsageError("trace takes SCENE.obj RAYS.txt HITS.txt");
     const BuildOptions t = tree_options(a);
     const TestKind tk = test_kind(a);
+    const std::string device = a.get("--device", "cpu");
+    if (device != "cpu" && device != "cl") throw UsageError("--device must be cpu or cl");
+    if (device == "cl" && tk != TestKind::watertight) throw UsageError("--device cl traces with the watertight test only");
     const Mesh mesh = load_scene(a.pos[0]);
     const std::vector<Ray> rays = read_rays(a.pos[1]);
     const Bvh bvh = build_tree(mesh, t);
@@ -255,7 +271,14 @@ int cmd_trace(int argc, char** argv) {
     const bool any = a.has("--any-hit");
     std::vector<Hit> hits(rays.size());
     std::vector<std::uint8_t> occl(rays.size());
-    with_test(tk, [&](auto test) {
+    if (device == "cl") {
+#if RAYKIT_CLI_HAVE_CL
+        hits = raykit_cli_trace_device(mesh, bvh, rays, any);
+        for (std::size_t i = 0; i < rays.size() && any; ++i) occl[i] = hits[i].prim == 1;
+#else
+        throw std::runtime_error("this raykit was built without OpenCL (install ocl-icd-opencl-dev, opencl-clhpp-headers and pocl-opencl-icd, then rebuild)");
+#endif
+    } else with_test(tk, [&](auto test) {
         using T = decltype(test);
         parallel_for(rays.size(), t.threads, [&](std::size_t i) {
             if (any) occl[i] = intersect_any<T>(mesh, bvh, rays[i]);
@@ -330,6 +353,18 @@ int cmd_check(int argc, char** argv) {
     return disagree == 0 ? 0 : 1;
 }
 
+int cmd_animate_test(int argc, char** argv) {
+    Args a(argc, argv, 2, {"--frames"}, {});
+    if (a.pos.size() != 1) throw UsageError("animate-test takes one SCENE.obj");
+    const int frames = a.number<int>("--frames", 10);
+    if (frames < 1) throw UsageError("--frames must be at least 1");
+#if RAYKIT_CLI_HAVE_CL
+    return raykit_cli_animate_test(load_scene(a.pos[0]), frames);
+#else
+    throw std::runtime_error("this raykit was built without OpenCL (install ocl-icd-opencl-dev, opencl-clhpp-headers and pocl-opencl-icd, then rebuild)");
+#endif
+}
+
 int cmd_generate(int argc, char** argv) {
     Args a(argc, argv, 2, {"--tris", "--seed"}, {});
     if (a.pos.size() != 2) throw UsageError("generate takes KIND OUT.obj");
@@ -369,6 +404,7 @@ int main(int argc, char** argv) {
         if (cmd == "trace") return cmd_trace(argc, argv);
         if (cmd == "check") return cmd_check(argc, argv);
         if (cmd == "generate") return cmd_generate(argc, argv);
+        if (cmd == "animate-test") return cmd_animate_test(argc, argv);
         if (cmd == "render") {
             try {
                 return raykit_cli_render(argc, argv, 2);

@@ -35,6 +35,8 @@
 #include "raykit/scene/build.hpp"
 #include "raykit/scene/trace.hpp"
 #include "raykit/scene/leaf_triangles.hpp"
+#include "raykit/scene/camera.hpp"
+#include "raykit/scene/scene.hpp"
 #include "raykit/io/parse_error.hpp"
 #include "raykit/io/obj.hpp"
 #include "raykit/io/obj_write.hpp"

@@ -167,3 +167,31 @@ TEST(Cli, InfoJsonAndCheck) {
     EXPECT_EQ(r.code, 0) << r.err;
     EXPECT_EQ(load_obj(tmpdir() / "t.obj").triangle_count(), 1024u);  // 2·nu·nv, nv = 16, nu = 32
 }
+
+#if RAYKIT_CLI_HAVE_CL
+TEST(Cli, DeviceTraceWritesTheSameHitsAsTheCpu) {
+    const fs::path scene = tmpdir() / "dev.obj", rays = tmpdir() / "dev_rays.txt";
+    save_obj(make_bumpy_torus(8000), scene);
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<float> U(-2.0f, 2.0f);
+    std::ostringstream text;
+    for (int i = 0; i < 3000; ++i) {
+        char line[256];
+        std::snprintf(line, sizeof line, "%.9g %.9g %.9g %.9g %.9g %.9g 0 inf\n", U(rng), U(rng), U(rng), U(rng),
+                      U(rng), U(rng));
+        text << line;
+    }
+    write(rays, text.str());
+    for (const char* any : {"", " --any-hit"}) {
+        const fs::path a = tmpdir() / "dev_cpu.txt", b = tmpdir() / "dev_cl.txt";
+        Result r = run("trace " + scene.string() + " " + rays.string() + " " + a.string() + any);
+        ASSERT_EQ(r.code, 0) << r.err;
+        r = run("trace " + scene.string() + " " + rays.string() + " " + b.string() + any + " --device cl");
+        if (r.code != 0 && r.err.find("no OpenCL") != std::string::npos) GTEST_SKIP() << r.err;
+        ASSERT_EQ(r.code, 0) << r.err;
+        EXPECT_EQ(slurp(a), slurp(b)) << "device and CPU HITS files differ" << any;
+    }
+    const Result d = run("info --device");
+    EXPECT_EQ(d.code, 0) << d.err;
+}
+#endif

@@ -17,8 +17,14 @@
 #include <vector>
 
 #include "raykit/cl/device.hpp"
+#include "raykit/math/types.hpp"
 
 namespace raykit::cl {
+
+/// vec3s as the flat float array the device reads with vload3.
+inline std::span<const float> float_span(std::span<const vec3> v) noexcept {
+    return {reinterpret_cast<const float*>(v.data()), v.size() * 3};
+}
 
 template <class T>
 class Buffer {

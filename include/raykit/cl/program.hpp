@@ -68,8 +68,8 @@ inline std::string assemble(std::initializer_list<SourcePart> parts) {
 class Program {
 public:
     Program() = default;
-    Program(::cl::Program p, const ::cl::Device& dev, double build_ms, bool cached, std::string log)
-        : program_(std::move(p)), device_(dev), build_ms_(build_ms), cached_(cached), log_(std::move(log)) {}
+    Program(::cl::Program p, double build_ms, bool cached, std::string log)
+        : program_(std::move(p)), build_ms_(build_ms), cached_(cached), log_(std::move(log)) {}
 
     /// A new kernel object for the __kernel function `name`.
     ::cl::Kernel kernel(const std::string& name) const {
@@ -88,7 +88,6 @@ public:
 
 private:
     ::cl::Program program_;
-    ::cl::Device device_;
     double build_ms_ = 0.0;
     bool cached_ = false;
     std::string log_;
@@ -131,7 +130,7 @@ inline Program build_program(Device& dev, const std::string& source, const std::
     if (auto it = c.programs.find(key); it != c.programs.end()) {
         ++c.stats.hits;
         const Program& p = it->second;
-        return Program(p.handle(), dev.handle(), p.build_ms(), true, p.log());
+        return Program(p.handle(), p.build_ms(), true, p.log());
     }
     cl_int err = CL_SUCCESS;
     ::cl::Program prog(dev.context(), source, false, &err);
@@ -145,7 +144,7 @@ inline Program build_program(Device& dev, const std::string& source, const std::
     if (berr != CL_SUCCESS) throw BuildError("clBuildProgram", berr, log);
     ++c.stats.builds;
     c.stats.build_ms += ms;
-    Program p(prog, dev.handle(), ms, false, log);
+    Program p(prog, ms, false, log);
     c.programs.emplace(key, p);
     return p;
 }

@@ -1,0 +1,362 @@
+// benchmarks/bench_cl.cpp — the OpenCL device path next to the CPU path.
+//
+// Device: raykit::cl::Device::shared() (RAYKIT_CL_DEVICE to choose; PoCL's CPU
+// device when there is no GPU). Every case skips itself when there is no
+// OpenCL device. Timings wait for the device (clFinish) and use real time.
+//
+// Cases (items/s = rays/s for traces; counters in ms where named so):
+//   cl_trace/<scene>/<rays>/<closest|any>/device       MeshTracer, rays resident on the device,
+//                                                      one launch per iteration (kernel + finish)
+//   cl_trace/<scene>/<rays>/<closest|any>/cpu/threads:2 intersect_closest / intersect_any over
+//                                                      2 std::threads (rkbench::trace_parallel)
+//       counter cpu_ms: process CPU time per iteration (all threads, PoCL's too): on a
+//       shared machine the ratio of cpu_ms is a steadier estimate of relative throughput
+//       on dedicated cores than the wall-clock ratio
+//       scene  torus100k, torus1M, bunny (if the shared data exists)   rays  primary, random
+//       (rkbench ray sets, 262 144 rays; any-hit with tmax = inf)
+//   cl_refit/<method>/tris:<T>/objects:<K>             refit of K dynamic objects of T/K triangles
+//       each (bumpy tori); method level-wise | one-pass | cpu (raykit::refit per object, one
+//       thread); counter levels = launches of level-wise; T = 10k, 100k, 1M; K = 1, 100
+//   cl_program/first      clBuildProgram of the full scene program (hooks wave), made unique per
+//                         iteration with a -D option (so neither raykit's nor PoCL's cache helps),
+//                         plus the first launch (PoCL compiles the work-group function then)
+//   cl_program/cached     build_program() of an already built program (the in-process cache)
+//   cl_frame/torus100k/device   one frame of a 100k-triangle dynamic mesh: wave vertex hook,
+//                         one-pass refit, top level, 1024x1024 camera rays (1 Mray) traced closest;
+//                         counters vertex_ms, refit_ms, tlas_ms, trace_ms
+//   cl_frame/torus100k/cpu      the same frame on the CPU twins (2 threads for vertices and rays)
+//
+//   cmake --build build-bench --target bench_cl
+//   build-bench/benchmarks/bench_cl --benchmark_out=bench_cl.json --benchmark_out_format=json
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <ctime>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "common.hpp"
+#include "raykit/cl.hpp"
+#include "raykit/scene/camera.hpp"
+#include "raykit/scene/scene.hpp"
+
+namespace {
+
+namespace rcl = raykit::cl;
+using clock_type = std::chrono::steady_clock;
+
+double ms_since(clock_type::time_point t0) {
+    return std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
+}
+
+/// CPU time of the whole process (all threads, PoCL's included), in ms.
+double process_cpu_ms() {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
+}
+
+/// The device, or nullptr after marking the case skipped.
+rcl::Device* device_or_skip(benchmark::State& state) {
+    try {
+        return &rcl::Device::shared();
+    } catch (const rcl::NoDeviceError& e) {
+        state.SkipWithError(e.what());
+        return nullptr;
+    }
+}
+
+// ---------------------------------------------------------------- trace
+
+struct TraceSetup {
+    std::unique_ptr<rcl::MeshTracer> tracer;
+    rcl::Buffer<raykit::Ray> rays;
+    rcl::Buffer<raykit::Hit> hits;
+    rcl::Buffer<std::uint32_t> occluded;
+};
+
+TraceSetup& trace_setup(rcl::Device& dev, const rkbench::Scene& s, const std::string& set) {
+    static std::map<std::pair<std::string, std::string>, std::unique_ptr<TraceSetup>> cache;
+    auto& slot = cache[{s.name, set}];
+    if (!slot) {
+        slot = std::make_unique<TraceSetup>();
+        slot->tracer = std::make_unique<rcl::MeshTracer>(dev, s.mesh, rkbench::raykit_bvh(s));
+        const auto& r = rkbench::rays(s, set);
+        slot->rays = rcl::Buffer<raykit::Ray>(dev, r, CL_MEM_READ_ONLY);
+        slot->hits = rcl::Buffer<raykit::Hit>(dev, r.size());
+        slot->occluded = rcl::Buffer<std::uint32_t>(dev, r.size());
+    }
+    return *slot;
+}
+
+void BM_TraceDevice(benchmark::State& state, const std::string& scene, const std::string& set, bool any) {
+    rcl::Device* dev = device_or_skip(state);
+    if (!dev) return;
+    const rkbench::Scene* s = rkbench::scene_or_skip(state, scene);
+    if (!s) return;
+    TraceSetup& t = trace_setup(*dev, *s, set);
+    const std::size_t n = t.rays.size();
+    // warm-up launch: PoCL compiles the kernel on its first launch
+    any ? t.tracer->any(t.rays, t.occluded, n) : t.tracer->closest(t.rays, t.hits, n);
+    dev->finish();
+    const double c0 = process_cpu_ms();
+    for (auto _ : state) {
+        any ? t.tracer->any(t.rays, t.occluded, n) : t.tracer->closest(t.rays, t.hits, n);
+        dev->finish();
+    }
+    state.counters["cpu_ms"] = (process_cpu_ms() - c0) / double(state.iterations());
+    state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * n));
+    state.counters["Mrays/s"] = benchmark::Counter(double(n) * 1e-6, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void BM_TraceCpu(benchmark::State& state, const std::string& scene, const std::string& set, bool any) {
+    const rkbench::Scene* s = rkbench::scene_or_skip(state, scene);
+    if (!s) return;
+    const raykit::Bvh& bvh = rkbench::raykit_bvh(*s);
+    const auto& rays = rkbench::rays(*s, set);
+    const raykit::MeshView mesh(s->mesh);
+    std::vector<raykit::Hit> hits(rays.size());
+    std::vector<std::uint8_t> occ(rays.size());
+    const unsigned threads = static_cast<unsigned>(state.range(0));
+    const double c0 = process_cpu_ms();
+    for (auto _ : state) {
+        rkbench::trace_parallel(rays.size(), threads, [&](std::size_t b, std::size_t e) {
+            if (any)
+                for (std::size_t i = b; i < e; ++i) occ[i] = raykit::intersect_any(mesh, bvh, rays[i]);
+            else
+                for (std::size_t i = b; i < e; ++i) hits[i] = raykit::intersect_closest(mesh, bvh, rays[i]);
+        });
+        benchmark::DoNotOptimize(hits.data());
+        benchmark::DoNotOptimize(occ.data());
+    }
+    state.counters["cpu_ms"] = (process_cpu_ms() - c0) / double(state.iterations());
+    state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * rays.size()));
+    state.counters["Mrays/s"] =
+        benchmark::Counter(double(rays.size()) * 1e-6, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+// ---------------------------------------------------------------- refit
+
+struct RefitSetup {
+    raykit::Scene scene;
+    std::unique_ptr<rcl::DeviceScene<>> ds;
+    std::vector<std::uint32_t> objects;
+};
+
+RefitSetup& refit_setup(rcl::Device& dev, std::size_t tris, std::size_t objects) {
+    static std::map<std::pair<std::size_t, std::size_t>, std::unique_ptr<RefitSetup>> cache;
+    auto& slot = cache[{tris, objects}];
+    if (!slot) {
+        slot = std::make_unique<RefitSetup>();
+        const raykit::Mesh m = raykit::make_bumpy_torus(tris / objects);
+        for (std::size_t k = 0; k < objects; ++k) {
+            const std::uint32_t o = slot->scene.add_object(m, raykit::ObjectKind::dynamic);
+            slot->objects.push_back(o);
+            slot->scene.add_instance(o, glm::translate(raykit::mat4(1.0f), raykit::vec3(3.0f * float(k % 10), 3.0f * float(k / 10), 0.0f)));
+        }
+        slot->scene.update_top_level();
+        slot->ds = std::make_unique<rcl::DeviceScene<>>(dev, slot->scene);
+        slot->ds->update();
+    }
+    return *slot;
+}
+
+enum class RefitCase { level_wise, one_pass, cpu };
+
+void BM_Refit(benchmark::State& state, RefitCase which) {
+    const auto tris = static_cast<std::size_t>(state.range(0));
+    const auto objects = static_cast<std::size_t>(state.range(1));
+    rcl::Device* dev = device_or_skip(state);
+    if (!dev) return;
+    RefitSetup& r = refit_setup(*dev, tris, objects);
+    std::size_t nodes = 0;
+    for (std::uint32_t o : r.objects) nodes += r.scene.objects()[o].bvh.nodes.size();
+    if (which == RefitCase::cpu) {
+        for (auto _ : state)
+            for (std::uint32_t o : r.objects) r.scene.refit_object(o);
+    } else {
+        const auto m = which == RefitCase::level_wise ? rcl::RefitMethod::level_wise : rcl::RefitMethod::one_pass;
+        r.ds->refit(m);  // warm-up (first launch compiles)
+        dev->finish();
+        for (auto _ : state) {
+            r.ds->refit(m);
+            dev->finish();
+        }
+    }
+    state.counters["nodes"] = double(nodes);
+    state.counters["levels"] = double(r.ds->refit_plan().levels());
+    state.counters["ms"] = benchmark::Counter(1e-3, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
+// ---------------------------------------------------------------- program build
+
+std::vector<rcl::SourcePart> scene_program_parts() {
+    std::vector<rcl::SourcePart> parts = rcl::base_parts();
+    parts.push_back({"raykit/kernels/camera.hpp", raykit::kernels::kCamera});
+    parts.push_back({"raykit/kernels/trace.hpp", raykit::kernels::kTrace});
+    parts.push_back(rcl::refit_part());
+    const auto hp = rcl::hook_parts<rcl::WaveHook>();
+    parts.insert(parts.end(), hp.begin(), hp.end());
+    return parts;
+}
+
+void BM_ProgramFirst(benchmark::State& state) {
+    rcl::Device* dev = device_or_skip(state);
+    if (!dev) return;
+    const std::string src = rcl::assemble(scene_program_parts());
+    static int nonce = 0;
+    double build_ms = 0.0, launch_ms = 0.0;
+    for (auto _ : state) {
+        const std::string opts = rcl::raykit_build_options(*dev) + " -DRK_BENCH_NONCE=" + std::to_string(++nonce) + "_" +
+                                 std::to_string(clock_type::now().time_since_epoch().count());
+        auto t0 = clock_type::now();
+        const rcl::Program p = rcl::build_program(*dev, src, opts);
+        build_ms += ms_since(t0);
+        t0 = clock_type::now();
+        ::cl::Kernel k = p.kernel("rk_camera_rays");
+        rcl::Buffer<raykit::Ray> rays;
+        rcl::camera_rays(*dev, k, raykit::Camera{.width = 8, .height = 8}.frame(), rays);
+        dev->finish();
+        launch_ms += ms_since(t0);
+    }
+    state.counters["build_ms"] = build_ms / double(state.iterations());
+    state.counters["first_launch_ms"] = launch_ms / double(state.iterations());
+}
+
+void BM_ProgramCached(benchmark::State& state) {
+    rcl::Device* dev = device_or_skip(state);
+    if (!dev) return;
+    const std::string src = rcl::assemble(scene_program_parts());
+    rcl::build_program(*dev, src, rcl::raykit_build_options(*dev));
+    for (auto _ : state) benchmark::DoNotOptimize(rcl::build_program(*dev, src, rcl::raykit_build_options(*dev)));
+}
+
+// ---------------------------------------------------------------- frame
+
+constexpr std::uint32_t kFrameSide = 1024;  // 1 Mray
+
+struct FrameSetup {
+    raykit::Scene scene;
+    std::uint32_t object = 0;
+    raykit::Camera camera;
+    std::unique_ptr<rcl::DeviceScene<rcl::WaveHook>> ds;
+    rcl::Buffer<raykit::Ray> rays;
+    rcl::Buffer<raykit::Hit> hits;
+};
+
+FrameSetup& frame_setup(rcl::Device* dev) {
+    static std::unique_ptr<FrameSetup> f;
+    if (!f) {
+        f = std::make_unique<FrameSetup>();
+        const rkbench::Scene* s = rkbench::scene("torus100k");
+        f->object = f->scene.add_object(s->mesh, raykit::ObjectKind::dynamic);
+        f->scene.add_instance(f->object);
+        f->scene.update_top_level();
+        raykit::AABB box = s->bounds;
+        box.grow(box.max + raykit::vec3(0.2f));
+        box.grow(box.min - raykit::vec3(0.2f));
+        f->camera = raykit::camera_looking_at(box, kFrameSide, kFrameSide);
+    }
+    if (dev && !f->ds) {
+        f->ds = std::make_unique<rcl::DeviceScene<rcl::WaveHook>>(*dev, f->scene);
+        f->ds->set_hook<rcl::WaveHook>(f->object, {});
+        f->ds->update();
+        f->ds->camera_rays(f->camera.frame(), f->rays);
+        f->ds->closest(f->rays, f->hits, f->rays.size());
+        dev->finish();
+    }
+    return *f;
+}
+
+void BM_FrameDevice(benchmark::State& state) {
+    rcl::Device* dev = device_or_skip(state);
+    if (!dev) return;
+    FrameSetup& f = frame_setup(dev);
+    double vertex = 0, refit = 0, tlas = 0, trace = 0;
+    float time = 0.0f;
+    for (auto _ : state) {
+        f.ds->set_hook<rcl::WaveHook>(f.object, {.time = time += 0.1f});
+        const rcl::FrameTimes ft = f.ds->update(rcl::RefitMethod::one_pass);
+        const auto t0 = clock_type::now();
+        f.ds->camera_rays(f.camera.frame(), f.rays);
+        f.ds->closest(f.rays, f.hits, f.rays.size());
+        dev->finish();
+        trace += ms_since(t0);
+        vertex += ft.vertex_ms;
+        refit += ft.refit_ms;
+        tlas += ft.top_level_ms;
+    }
+    const double it = double(state.iterations());
+    state.counters["vertex_ms"] = vertex / it;
+    state.counters["refit_ms"] = refit / it;
+    state.counters["tlas_ms"] = tlas / it;
+    state.counters["trace_ms"] = trace / it;
+    state.counters["Mrays/s"] = double(f.rays.size()) * 1e-3 / (trace / it);
+}
+
+void BM_FrameCpu(benchmark::State& state) {
+    FrameSetup& f = frame_setup(nullptr);
+    const raykit::CameraFrame cf = f.camera.frame();
+    std::vector<raykit::Hit> hits(std::size_t(kFrameSide) * kFrameSide);
+    double vertex = 0, tlas = 0, trace = 0;
+    float time = 0.0f;
+    for (auto _ : state) {
+        const rcl::WaveHook::Params p{.time = time += 0.1f};
+        auto t0 = clock_type::now();
+        f.scene.move_vertices(f.object, [&](const raykit::Vertex& v, std::uint32_t i) { return rcl::WaveHook::apply(v, i, p); }, 2);
+        vertex += ms_since(t0);  // includes the (single-threaded) refit
+        t0 = clock_type::now();
+        f.scene.update_top_level();
+        tlas += ms_since(t0);
+        t0 = clock_type::now();
+        rkbench::trace_parallel(hits.size(), 2, [&](std::size_t b, std::size_t e) {
+            for (std::size_t i = b; i < e; ++i)
+                hits[i] = f.scene.intersect_closest(cf.ray(std::uint32_t(i % kFrameSide), std::uint32_t(i / kFrameSide)));
+        });
+        trace += ms_since(t0);
+        benchmark::DoNotOptimize(hits.data());
+    }
+    const double it = double(state.iterations());
+    state.counters["vertex_refit_ms"] = vertex / it;
+    state.counters["tlas_ms"] = tlas / it;
+    state.counters["trace_ms"] = trace / it;
+    state.counters["Mrays/s"] = double(hits.size()) * 1e-3 / (trace / it);
+}
+
+const bool registered = [] {
+    for (const std::string scene : {"torus100k", "torus1M", "bunny"})
+        for (const std::string set : {"primary", "random"})
+            for (const bool any : {false, true}) {
+                const std::string base = "cl_trace/" + scene + "/" + set + "/" + (any ? "any" : "closest");
+                benchmark::RegisterBenchmark((base + "/device").c_str(), BM_TraceDevice, scene, set, any)
+                    ->UseRealTime()
+                    ->MinTime(0.5)
+                    ->Unit(benchmark::kMillisecond);
+                benchmark::RegisterBenchmark((base + "/cpu").c_str(), BM_TraceCpu, scene, set, any)
+                    ->ArgName("threads")
+                    ->Arg(2)
+                    ->UseRealTime()
+                    ->MinTime(0.5)
+                    ->Unit(benchmark::kMillisecond);
+            }
+    for (const auto& [name, which] : {std::pair{"level-wise", RefitCase::level_wise}, std::pair{"one-pass", RefitCase::one_pass},
+                                      std::pair{"cpu", RefitCase::cpu}})
+        benchmark::RegisterBenchmark((std::string("cl_refit/") + name).c_str(), BM_Refit, which)
+            ->ArgNames({"tris", "objects"})
+            ->ArgsProduct({{10000, 100000, 1000000}, {1, 100}})
+            ->UseRealTime()
+            ->MinTime(0.3)
+            ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("cl_program/first", BM_ProgramFirst)->Iterations(3)->UseRealTime()->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("cl_program/cached", BM_ProgramCached)->UseRealTime()->Unit(benchmark::kMicrosecond);
+    benchmark::RegisterBenchmark("cl_frame/torus100k/device", BM_FrameDevice)->UseRealTime()->MinTime(1.0)->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("cl_frame/torus100k/cpu", BM_FrameCpu)->UseRealTime()->MinTime(1.0)->Unit(benchmark::kMillisecond);
+    return true;
+}();
+
+}  // namespace

@@ -1,0 +1,485 @@
+// raykit/cl/device_scene.hpp — a raykit::Scene on the device: the frame pipeline.
+//
+//   Scene scene;  ... add objects (static / dynamic) and instances ...
+//   raykit::cl::DeviceScene<WaveHook> ds(raykit::cl::Device::shared(), scene);
+//   ds.set_hook<WaveHook>(cloth, {.time = 0.0f});          // which hook moves which dynamic object
+//   per frame:
+//     ds.set_hook<WaveHook>(cloth, {.time = t});            // new parameters
+//     scene.set_transform(...);                             // instances are read from the Scene
+//     FrameTimes ft = ds.update();                          // vertex stage, refit, top level
+//     ds.camera_rays(cam.frame(), rays);  ds.closest(rays, hits, n);
+//
+// Upload: every object's nodes, prim_ids, triangles and positions go into
+// concatenated device arrays once, dynamic objects first. Static objects
+// are never written again. A dynamic object also gets its rest vertices
+// (position, normal, uv) and a moved copy.
+//
+// update() runs only the stages the scene needs:
+//   vertex stage  one launch per hook that moves at least one object (the
+//                 hook's objects are concatenated into one launch); each vertex
+//                 is computed from its rest copy;
+//   refit         when a vertex stage ran or set_positions() was called:
+//                 every dynamic tree, level-wise or one-pass (cl/refit.hpp);
+//   top level     dynamic root boxes gathered (one launch + one small read,
+//                 only after a refit), instance world boxes from the Scene's
+//                 transforms (transformed_box), the top-level tree built (or
+//                 refitted) on the host with the Scene's builder settings and
+//                 uploaded with the instance records.
+// A scene with no dynamic object never launches a vertex or refit kernel;
+// a hook no object uses is not even compiled (the program holds only the
+// used hooks' sources and stages). launches() counts every launch by stage.
+//
+// Tracing (closest / any, one work item per ray) is the twin of
+// Scene::intersect_closest / intersect_any: same object-space rays (the
+// same fma formulation), same traversal and tie rules.
+//
+// The Scene must outlive the DeviceScene and keep its objects (instances may
+// be added or moved between updates; objects may not be added). A
+// DeviceScene is not thread-safe: use it from one thread at a time.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include "raykit/cl/buffer.hpp"
+#include "raykit/cl/hook.hpp"
+#include "raykit/cl/layout.hpp"
+#include "raykit/cl/program.hpp"
+#include "raykit/cl/refit.hpp"
+#include "raykit/cl/trace.hpp"
+#include "raykit/kernels/camera.hpp"
+#include "raykit/kernels/trace.hpp"
+#include "raykit/scene/scene.hpp"
+
+namespace raykit::cl {
+
+/// Kernel launches of a DeviceScene, by stage.
+struct LaunchCounts {
+    std::size_t vertex = 0;     ///< vertex-stage launches
+    std::size_t refit = 0;      ///< refit launches
+    std::size_t top_level = 0;  ///< root-box gathers
+    std::size_t trace = 0;      ///< closest / any launches
+    std::size_t camera = 0;     ///< camera-ray launches
+    std::size_t total() const noexcept { return vertex + refit + top_level + trace + camera; }
+};
+
+/// Wall-clock milliseconds of one update(), each stage waited for.
+struct FrameTimes {
+    double vertex_ms = 0.0;
+    double refit_ms = 0.0;
+    double top_level_ms = 0.0;
+    double total_ms() const noexcept { return vertex_ms + refit_ms + top_level_ms; }
+};
+
+template <VertexHook... Hooks>
+class DeviceScene {
+    using HookList = std::tuple<Hooks...>;
+    static constexpr std::size_t kHooks = sizeof...(Hooks);
+
+    template <class H, std::size_t... I>
+    static constexpr std::size_t index_of(std::index_sequence<I...>) {
+        std::size_t r = kHooks;
+        ((std::is_same_v<H, std::tuple_element_t<I, HookList>> ? (r = I, 0) : 0), ...);
+        return r;
+    }
+    template <class H>
+    static constexpr std::size_t hook_index = index_of<H>(std::make_index_sequence<kHooks>{});
+
+public:
+    DeviceScene(Device& dev, const Scene& scene) : dev_(&dev), scene_(&scene) {
+        const auto& objs = scene.objects();
+        if (objs.size() >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::DeviceScene: too many objects");
+        records_.resize(objs.size());
+        hook_of_.assign(objs.size(), kNoHook);
+        params_.resize(objs.size());
+        std::vector<Node> nodes;
+        std::vector<std::uint32_t> prim_ids;
+        std::vector<Triangle> tris;
+        std::vector<float> pos;
+        std::vector<Vertex> rest;
+        std::vector<RefitTree> trees;
+        auto add = [&](std::uint32_t i) {
+            const SceneObject& o = objs[i];
+            ObjectRecord& r = records_[i];
+            r.node_offset = checked(nodes.size());
+            r.node_count = checked(o.bvh.nodes.size());
+            r.prim_offset = checked(prim_ids.size());
+            r.triangle_offset = checked(tris.size());
+            r.vertex_offset = checked(pos.size() / 3);
+            r.vertex_count = checked(o.mesh.positions.size());
+            r.triangle_count = checked(o.mesh.triangles.size());
+            nodes.insert(nodes.end(), o.bvh.nodes.begin(), o.bvh.nodes.end());
+            prim_ids.insert(prim_ids.end(), o.bvh.prim_ids.begin(), o.bvh.prim_ids.end());
+            tris.insert(tris.end(), o.mesh.triangles.begin(), o.mesh.triangles.end());
+            for (const vec3& p : o.mesh.positions) pos.insert(pos.end(), {p.x, p.y, p.z});
+            checked(pos.size() / 3);
+            if (o.dynamic()) {
+                dynamic_.push_back(i);
+                rest_offset_.push_back(checked(rest.size()));
+                rest.insert(rest.end(), o.rest.begin(), o.rest.end());
+                trees.push_back({&o.bvh, i, r.node_offset});
+            }
+        };
+        for (std::uint32_t i = 0; i < objs.size(); ++i)
+            if (objs[i].dynamic()) add(i);
+        for (std::uint32_t i = 0; i < objs.size(); ++i)
+            if (!objs[i].dynamic()) add(i);
+        roots_.resize(objs.size());
+        for (std::uint32_t i = 0; i < objs.size(); ++i) roots_[i] = objs[i].bounds();
+
+        nodes_ = Buffer<Node>(dev, nodes);
+        prim_ids_ = Buffer<std::uint32_t>(dev, prim_ids, CL_MEM_READ_ONLY);
+        triangles_ = Buffer<Triangle>(dev, tris, CL_MEM_READ_ONLY);
+        positions_ = Buffer<float>(dev, pos);
+        objects_ = Buffer<ObjectRecord>(dev, records_, CL_MEM_READ_ONLY);
+        if (!dynamic_.empty()) {
+            rest_ = Buffer<Vertex>(dev, rest, CL_MEM_READ_ONLY);
+            moved_ = Buffer<Vertex>(dev, rest);
+            refit_plan_ = RefitPlan(dev, trees);
+            which_roots_ = Buffer<std::uint32_t>(dev, dynamic_, CL_MEM_READ_ONLY);
+            root_boxes_ = Buffer<AABB>(dev, dynamic_.size());
+        }
+    }
+    DeviceScene(const DeviceScene&) = delete;
+    DeviceScene& operator=(const DeviceScene&) = delete;
+
+    /// Hook H (one of Hooks...) moves dynamic object `object` with `params`
+    /// from the next update() on (calling it again just changes the params).
+    template <class H>
+    void set_hook(std::uint32_t object, const typename H::Params& params) {
+        static_assert(hook_index<H> < kHooks, "H is not one of this DeviceScene's hooks");
+        require_dynamic(object, "set_hook");
+        if (hook_of_[object] != hook_index<H>) {
+            hook_of_[object] = hook_index<H>;
+            tables_dirty_ = true;
+        }
+        params_[object].resize(sizeof(params));
+        std::memcpy(params_[object].data(), &params, sizeof(params));
+    }
+    /// Object no longer moved by a hook (it keeps its current vertices).
+    void clear_hook(std::uint32_t object) {
+        require_dynamic(object, "clear_hook");
+        if (hook_of_[object] != kNoHook) {
+            hook_of_[object] = kNoHook;
+            tables_dirty_ = true;
+        }
+    }
+    /// Writes a dynamic object's positions directly (e.g. CPU skinning); the
+    /// next update() refits.
+    void set_positions(std::uint32_t object, std::span<const vec3> positions) {
+        require_dynamic(object, "set_positions");
+        if (positions.size() != records_[object].vertex_count)
+            throw std::invalid_argument("raykit::cl::DeviceScene::set_positions: wrong vertex count");
+        positions_.write(*dev_, float_span(positions), std::size_t(records_[object].vertex_offset) * 3);
+        moved_by_host_ = true;
+    }
+
+    /// Runs the frame's stages (see the top of this file).
+    FrameTimes update(RefitMethod method = RefitMethod::one_pass, TopLevelUpdate top = TopLevelUpdate::rebuild) {
+        using clock = std::chrono::steady_clock;
+        auto ms = [](clock::time_point a) { return std::chrono::duration<double, std::milli>(clock::now() - a).count(); };
+        ensure_program();
+        FrameTimes ft;
+        auto t0 = clock::now();
+        const bool moved = run_vertex_stage() || moved_by_host_;
+        moved_by_host_ = false;
+        dev_->finish();
+        ft.vertex_ms = ms(t0);
+        t0 = clock::now();
+        if (moved) {
+            launches_.refit += refit_plan_.run(*dev_, refit_kernels_, method,
+                                               {&nodes_, &prim_ids_, &triangles_, &positions_, &objects_});
+            dev_->finish();
+        }
+        ft.refit_ms = ms(t0);
+        t0 = clock::now();
+        if (moved) gather_roots();
+        update_top_level(top);
+        dev_->finish();
+        ft.top_level_ms = ms(t0);
+        fresh_ = true;
+        return ft;
+    }
+
+    /// Only the refit stage (all dynamic trees), e.g. to time or compare methods.
+    void refit(RefitMethod method) {
+        ensure_program();
+        launches_.refit += refit_plan_.run(*dev_, refit_kernels_, method, {&nodes_, &prim_ids_, &triangles_, &positions_, &objects_});
+    }
+
+    // ------------------------------------------------------------ tracing
+
+    void closest(const Buffer<Ray>& rays, Buffer<Hit>& hits, std::size_t n) {
+        prepare_trace(rays, n);
+        hits.reserve(*dev_, n);
+        set_args(k_closest_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, prim_ids_, triangles_,
+                 positions_, rays, hits, static_cast<std::uint32_t>(n));
+        launches_.trace += launch(dev_->queue(), k_closest_, n, kTraceGroupSize);
+    }
+    void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
+        prepare_trace(rays, n);
+        occluded.reserve(*dev_, n);
+        set_args(k_any_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, prim_ids_, triangles_,
+                 positions_, rays, occluded, static_cast<std::uint32_t>(n));
+        launches_.trace += launch(dev_->queue(), k_any_, n, kTraceGroupSize);
+    }
+    std::vector<Hit> closest(std::span<const Ray> rays) {
+        Buffer<Ray> r(*dev_, rays, CL_MEM_READ_ONLY);
+        Buffer<Hit> h(*dev_, rays.size(), CL_MEM_WRITE_ONLY);
+        closest(r, h, rays.size());
+        return h.read(*dev_);
+    }
+    std::vector<std::uint32_t> any(std::span<const Ray> rays) {
+        Buffer<Ray> r(*dev_, rays, CL_MEM_READ_ONLY);
+        Buffer<std::uint32_t> o(*dev_, rays.size(), CL_MEM_WRITE_ONLY);
+        any(r, o, rays.size());
+        return o.read(*dev_);
+    }
+    /// Camera rays on the device (bit-identical to CameraFrame::ray).
+    void camera_rays(const CameraFrame& frame, Buffer<Ray>& rays, float jx = 0.5f, float jy = 0.5f) {
+        ensure_program();
+        cl::camera_rays(*dev_, k_camera_, frame, rays, jx, jy);
+        ++launches_.camera;
+    }
+
+    // ------------------------------------------------------------ inspection
+
+    const LaunchCounts& launches() const noexcept { return launches_; }
+    const Program& program() {
+        ensure_program();
+        return program_;
+    }
+    /// Names of the hooks compiled into the current program.
+    std::vector<std::string> compiled_hooks() {
+        ensure_program();
+        std::vector<std::string> n;
+        for_each_hook([&]<std::size_t I>() {
+            if (used_ & (1ull << I)) n.push_back(std::tuple_element_t<I, HookList>::name);
+        });
+        return n;
+    }
+    /// An object's current device positions / tree nodes / moved vertices.
+    std::vector<vec3> positions(std::uint32_t object) {
+        const ObjectRecord& r = records_.at(object);
+        std::vector<vec3> out(r.vertex_count);
+        if (!out.empty()) positions_.read(*dev_, std::span<float>(reinterpret_cast<float*>(out.data()), out.size() * 3), std::size_t(r.vertex_offset) * 3);
+        return out;
+    }
+    std::vector<Node> nodes(std::uint32_t object) {
+        const ObjectRecord& r = records_.at(object);
+        std::vector<Node> out(r.node_count);
+        nodes_.read(*dev_, std::span<Node>(out), r.node_offset);
+        return out;
+    }
+    std::vector<Vertex> moved_vertices(std::uint32_t object) {
+        const std::size_t d = dynamic_slot(object, "moved_vertices");
+        std::vector<Vertex> out(records_[object].vertex_count);
+        moved_.read(*dev_, std::span<Vertex>(out), rest_offset_[d]);
+        return out;
+    }
+    /// The top-level tree of the last update().
+    const Bvh& top_level() const noexcept { return top_; }
+    /// Object root boxes as of the last update() (device-refitted for dynamic objects).
+    const std::vector<AABB>& root_boxes() const noexcept { return roots_; }
+    const RefitPlan& refit_plan() const noexcept { return refit_plan_; }
+    std::size_t dynamic_object_count() const noexcept { return dynamic_.size(); }
+    Device& device() noexcept { return *dev_; }
+
+private:
+    static constexpr std::size_t kNoHook = ~std::size_t(0);
+
+    template <class Fn>
+    static void for_each_hook(Fn&& fn) {
+        [&]<std::size_t... I>(std::index_sequence<I...>) { (fn.template operator()<I>(), ...); }(std::make_index_sequence<kHooks>{});
+    }
+
+    static std::uint32_t checked(std::size_t n) {
+        if (n >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::DeviceScene: scene too large for 32-bit indices");
+        return static_cast<std::uint32_t>(n);
+    }
+    std::size_t dynamic_slot(std::uint32_t object, const char* what) const {
+        for (std::size_t d = 0; d < dynamic_.size(); ++d)
+            if (dynamic_[d] == object) return d;
+        if (object >= records_.size())
+            throw std::out_of_range(std::string("raykit::cl::DeviceScene::") + what + ": no object " + std::to_string(object));
+        throw std::logic_error(std::string("raykit::cl::DeviceScene::") + what + ": object " + std::to_string(object) +
+                               " is static");
+    }
+    void require_dynamic(std::uint32_t object, const char* what) const { (void)dynamic_slot(object, what); }
+
+    std::uint64_t used_hooks() const {
+        std::uint64_t m = 0;
+        for (std::uint32_t o : dynamic_)
+            if (hook_of_[o] != kNoHook) m |= 1ull << hook_of_[o];
+        return m;
+    }
+
+    void ensure_program() {
+        static_assert(kHooks <= 64, "at most 64 hooks");
+        const std::uint64_t used = used_hooks();
+        if (have_program_ && used == used_) return;
+        std::vector<SourcePart> parts = base_parts();
+        parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
+        parts.push_back({"raykit/kernels/trace.hpp", kernels::kTrace});
+        if (!dynamic_.empty()) parts.push_back(refit_part());
+        for_each_hook([&]<std::size_t I>() {
+            if (used & (1ull << I)) {
+                const auto hp = hook_parts<std::tuple_element_t<I, HookList>>();
+                parts.insert(parts.end(), hp.begin(), hp.end());
+            }
+        });
+        program_ = build_program(*dev_, assemble(parts), raykit_build_options(*dev_));
+        k_closest_ = program_.kernel("rk_scene_closest");
+        k_any_ = program_.kernel("rk_scene_any");
+        k_camera_ = program_.kernel("rk_camera_rays");
+        if (!dynamic_.empty()) {
+            refit_kernels_ = RefitKernels(program_);
+            k_roots_ = program_.kernel("rk_gather_roots");
+        }
+        for_each_hook([&]<std::size_t I>() {
+            hooks_[I].kernel = (used & (1ull << I))
+                                   ? program_.kernel(std::string("rk_vertex_stage_") + std::tuple_element_t<I, HookList>::name)
+                                   : ::cl::Kernel();
+        });
+        used_ = used;
+        have_program_ = true;
+        tables_dirty_ = true;
+    }
+
+    /// Launches the vertex stage of every used hook; true when one ran.
+    bool run_vertex_stage() {
+        bool ran = false;
+        for_each_hook([&]<std::size_t I>() {
+            if (!(used_ & (1ull << I))) return;
+            using H = std::tuple_element_t<I, HookList>;
+            HookState& hs = hooks_[I];
+            if (tables_dirty_) {
+                std::vector<std::uint32_t> begin{0}, rest_off, pos_off;
+                hs.objects.clear();
+                for (std::size_t d = 0; d < dynamic_.size(); ++d) {
+                    const std::uint32_t o = dynamic_[d];
+                    if (hook_of_[o] != I) continue;
+                    hs.objects.push_back(o);
+                    rest_off.push_back(rest_offset_[d]);
+                    pos_off.push_back(records_[o].vertex_offset);
+                    begin.push_back(begin.back() + records_[o].vertex_count);
+                }
+                hs.total = begin.back();
+                hs.begin = Buffer<std::uint32_t>(*dev_, begin, CL_MEM_READ_ONLY);
+                hs.rest_offset = Buffer<std::uint32_t>(*dev_, rest_off, CL_MEM_READ_ONLY);
+                hs.pos_offset = Buffer<std::uint32_t>(*dev_, pos_off, CL_MEM_READ_ONLY);
+            }
+            std::vector<typename H::Params> params(hs.objects.size());
+            for (std::size_t k = 0; k < hs.objects.size(); ++k)
+                std::memcpy(&params[k], params_[hs.objects[k]].data(), sizeof(typename H::Params));
+            hs.params.reserve(*dev_, params.size() * sizeof(typename H::Params));
+            hs.params.write(*dev_, std::span<const std::byte>(reinterpret_cast<const std::byte*>(params.data()),
+                                                              params.size() * sizeof(typename H::Params)));
+            set_args(hs.kernel, rest_, moved_, positions_, hs.begin, hs.rest_offset, hs.pos_offset, hs.params,
+                     static_cast<std::uint32_t>(hs.objects.size()), hs.total);
+            const bool l = launch(dev_->queue(), hs.kernel, hs.total, 64);
+            launches_.vertex += l;
+            ran = ran || l;
+        });
+        tables_dirty_ = false;
+        return ran;
+    }
+
+    void gather_roots() {
+        if (dynamic_.empty()) return;
+        const auto n = static_cast<std::uint32_t>(dynamic_.size());
+        set_args(k_roots_, nodes_, objects_, which_roots_, root_boxes_, n);
+        launches_.top_level += launch(dev_->queue(), k_roots_, n, 64);
+        const std::vector<AABB> boxes = root_boxes_.read(*dev_);
+        for (std::size_t d = 0; d < dynamic_.size(); ++d) roots_[dynamic_[d]] = boxes[d];
+    }
+
+    void update_top_level(TopLevelUpdate mode) {
+        const auto& insts = scene_->instances();
+        std::vector<AABB> boxes(insts.size());
+        std::vector<InstanceRecord> recs(insts.size());
+        for (std::size_t i = 0; i < insts.size(); ++i) {
+            if (insts[i].object >= records_.size())
+                throw std::logic_error("raykit::cl::DeviceScene: an instance refers to an object added after the DeviceScene");
+            boxes[i] = transformed_box(roots_[insts[i].object], insts[i].transform);
+            recs[i].world_to_object = insts[i].to_object;
+            recs[i].object_to_world = insts[i].to_world;
+            recs[i].object = insts[i].object;
+        }
+        if (mode == TopLevelUpdate::refit && top_.prim_ids.size() == insts.size() && !insts.empty())
+            raykit::refit(top_, [&](std::uint32_t i) { return boxes[i]; });
+        else
+            top_ = Scene::build_top_level(boxes, scene_->top_level_config());
+        top_count_ = checked(top_.nodes.size());
+        top_nodes_.reserve(*dev_, top_.nodes.size());
+        top_nodes_.write(*dev_, std::span<const Node>(top_.nodes.data(), top_.nodes.size()));
+        top_ids_.reserve(*dev_, top_.prim_ids.size());
+        top_ids_.write(*dev_, top_.prim_ids);
+        instances_.reserve(*dev_, recs.size());
+        instances_.write(*dev_, recs);
+        instance_count_ = insts.size();
+    }
+
+    void prepare_trace(const Buffer<Ray>& rays, std::size_t n) {
+        if (!fresh_) throw std::logic_error("raykit::cl::DeviceScene: call update() before tracing");
+        if (scene_->instances().size() != instance_count_)
+            throw std::logic_error("raykit::cl::DeviceScene: instances changed since update()");
+        if (n > rays.size()) throw std::out_of_range("raykit::cl::DeviceScene: more rays asked for than the buffer holds");
+        if (n > 0xFFFFFFFFu) throw std::length_error("raykit::cl::DeviceScene: more than 2^32 rays in one launch");
+        ensure_program();
+    }
+
+    struct HookState {
+        std::vector<std::uint32_t> objects;
+        std::uint32_t total = 0;
+        Buffer<std::uint32_t> begin, rest_offset, pos_offset;
+        Buffer<std::byte> params;
+        ::cl::Kernel kernel;
+    };
+
+    Device* dev_;
+    const Scene* scene_;
+    std::vector<ObjectRecord> records_;
+    std::vector<std::uint32_t> dynamic_;      ///< scene object indices of dynamic objects
+    std::vector<std::uint32_t> rest_offset_;  ///< per dynamic slot, into rest_/moved_
+    std::vector<std::size_t> hook_of_;        ///< per object: hook index or kNoHook
+    std::vector<std::vector<std::byte>> params_;
+    std::vector<AABB> roots_;
+    std::array<HookState, kHooks> hooks_{};
+    bool tables_dirty_ = true, have_program_ = false, moved_by_host_ = false, fresh_ = false;
+    std::uint64_t used_ = 0;
+
+    Program program_;
+    ::cl::Kernel k_closest_, k_any_, k_camera_, k_roots_;
+    RefitKernels refit_kernels_;
+    RefitPlan refit_plan_;
+
+    Buffer<Node> nodes_;
+    Buffer<std::uint32_t> prim_ids_;
+    Buffer<Triangle> triangles_;
+    Buffer<float> positions_;
+    Buffer<ObjectRecord> objects_;
+    Buffer<Vertex> rest_, moved_;
+    Buffer<std::uint32_t> which_roots_;
+    Buffer<AABB> root_boxes_;
+
+    Bvh top_;
+    std::uint32_t top_count_ = 0;
+    std::size_t instance_count_ = 0;
+    Buffer<Node> top_nodes_;
+    Buffer<std::uint32_t> top_ids_;
+    Buffer<InstanceRecord> instances_;
+    LaunchCounts launches_;
+};
+
+}  // namespace raykit::cl

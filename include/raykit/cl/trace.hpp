@@ -1,0 +1,157 @@
+// raykit/cl/trace.hpp — tracing one mesh on an OpenCL device.
+//
+//   raykit::cl::MeshTracer tracer(raykit::cl::Device::shared(), mesh, bvh);
+//   std::vector<Hit> hits = tracer.closest(rays);          // == intersect_closest per ray
+//   std::vector<std::uint32_t> occ = tracer.any(rays);      // 1 = occluded, 0 = free
+//
+// The kernels (kernels/raykit/kernels/trace.hpp) are the twins of
+// scene/trace.hpp with the Watertight test: the same traversal order, the
+// same tie rule (smaller t, then smaller triangle index), a stack of
+// RAYKIT_BVH_MAX_DEPTH entries. On a device with cl_khr_fp64 the edge
+// functions are evaluated in double like the CPU's; the two expressions a
+// compiler may fuse into fma are fused on the device exactly when the host
+// build fuses them (probed, cl/layout.hpp host_float_config()); division is
+// correctly rounded where the device supports
+// -cl-fp32-correctly-rounded-divide-sqrt. So on such devices (PoCL's CPU
+// device is one) hits equal the CPU's bit for bit (t, u, v, triangle).
+// Without fp64 the edge functions are float and FMA-proof (watertight, but
+// t may differ in the last bits, and ties at shared edges may go to the
+// neighbouring triangle).
+//
+// Device-resident variants take Buffers (rays stay on the device, e.g. from
+// camera_rays()); the vector variants upload, trace and download.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <stdexcept>
+#include <vector>
+
+#include "raykit/cl/buffer.hpp"
+#include "raykit/cl/layout.hpp"
+#include "raykit/cl/program.hpp"
+#include "raykit/kernels/camera.hpp"
+#include "raykit/kernels/trace.hpp"
+#include "raykit/scene/camera.hpp"
+#include "raykit/scene/mesh.hpp"
+
+namespace raykit::cl {
+
+/// Work-items per work-group of raykit's trace launches.
+inline constexpr std::size_t kTraceGroupSize = 64;
+
+/// Config + layout + common math + camera + trace kernels for `dev` (cached).
+/// `extra_options` are appended to the build options (e.g. "-DRK_EDGE_DOUBLE=0"
+/// forces the float edge functions of kernels/raykit/kernels/common.hpp).
+inline Program trace_program(Device& dev, const std::string& extra_options = {}) {
+    std::vector<SourcePart> parts = base_parts();
+    parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
+    parts.push_back({"raykit/kernels/trace.hpp", kernels::kTrace});
+    std::string opts = raykit_build_options(dev);
+    if (!extra_options.empty()) opts += (opts.empty() ? "" : " ") + extra_options;
+    return build_program(dev, assemble(parts), opts);
+}
+
+/// Fills `rays` (width·height, row-major) with the camera's rays through the
+/// image points (x + jx, y + jy): bit-identical to CameraFrame::ray.
+inline void camera_rays(Device& dev, ::cl::Kernel& k, const CameraFrame& frame, Buffer<Ray>& rays, float jx = 0.5f,
+                        float jy = 0.5f) {
+    const std::size_t n = std::size_t(frame.width) * frame.height;
+    if (n > 0xFFFFFFFFu) throw std::length_error("raykit::cl::camera_rays: more than 2^32 pixels");
+    rays.reserve(dev, n);
+    set_args(k, frame, jx, jy, rays);
+    launch(dev.queue(), k, n, kTraceGroupSize);
+}
+
+class MeshTracer {
+public:
+    /// Uploads the mesh (positions, triangles) and the tree; `extra_options`
+    /// go to trace_program().
+    MeshTracer(Device& dev, const MeshView& mesh, const Bvh& bvh, const std::string& extra_options = {}) : dev_(&dev) {
+        if (bvh.prim_ids.size() != mesh.size())
+            throw std::invalid_argument("raykit::cl::MeshTracer: tree and mesh differ in triangle count");
+        if (mesh.positions.size() >= 0x55555555u || bvh.nodes.size() >= 0xFFFFFFFFu)
+            throw std::length_error("raykit::cl::MeshTracer: mesh too large for 32-bit indices");
+        program_ = trace_program(dev, extra_options);
+        k_closest_ = program_.kernel("rk_mesh_closest");
+        k_any_ = program_.kernel("rk_mesh_any");
+        k_camera_ = program_.kernel("rk_camera_rays");
+        positions_ = Buffer<float>(dev, float_span(mesh.positions), CL_MEM_READ_WRITE);
+        triangles_ = Buffer<Triangle>(dev, mesh.triangles, CL_MEM_READ_ONLY);
+        update_tree(bvh);
+    }
+
+    /// Replaces the tree's nodes (e.g. after a refit; same prim_ids) or the whole tree.
+    void update_tree(const Bvh& bvh) {
+        nodes_ = Buffer<Node>(*dev_, std::span<const Node>(bvh.nodes.data(), bvh.nodes.size()), CL_MEM_READ_WRITE);
+        prim_ids_ = Buffer<std::uint32_t>(*dev_, bvh.prim_ids, CL_MEM_READ_ONLY);
+        node_count_ = static_cast<std::uint32_t>(bvh.nodes.size());
+    }
+    /// Replaces the vertex positions (same count).
+    void update_positions(std::span<const vec3> positions) {
+        if (positions.size() * 3 != positions_.size())
+            throw std::invalid_argument("raykit::cl::MeshTracer::update_positions: vertex count changed");
+        positions_.write(*dev_, float_span(positions));
+    }
+
+    /// Closest hits of rays[0..n) into hits (device-resident; asynchronous).
+    void closest(const Buffer<Ray>& rays, Buffer<Hit>& hits, std::size_t n) {
+        check_count(rays, n);
+        hits.reserve(*dev_, n);
+        set_args(k_closest_, nodes_, prim_ids_, triangles_, positions_, node_count_, rays, hits,
+                 static_cast<std::uint32_t>(n));
+        launches_ += launch(dev_->queue(), k_closest_, n, kTraceGroupSize);
+    }
+    /// occluded[i] = 1 when rays[i] hits anything in [tmin, tmax], else 0.
+    void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
+        check_count(rays, n);
+        occluded.reserve(*dev_, n);
+        set_args(k_any_, nodes_, prim_ids_, triangles_, positions_, node_count_, rays, occluded,
+                 static_cast<std::uint32_t>(n));
+        launches_ += launch(dev_->queue(), k_any_, n, kTraceGroupSize);
+    }
+
+    std::vector<Hit> closest(std::span<const Ray> rays) {
+        Buffer<Ray> r(*dev_, rays, CL_MEM_READ_ONLY);
+        Buffer<Hit> h(*dev_, rays.size(), CL_MEM_WRITE_ONLY);
+        closest(r, h, rays.size());
+        return h.read(*dev_);
+    }
+    std::vector<std::uint32_t> any(std::span<const Ray> rays) {
+        Buffer<Ray> r(*dev_, rays, CL_MEM_READ_ONLY);
+        Buffer<std::uint32_t> o(*dev_, rays.size(), CL_MEM_WRITE_ONLY);
+        any(r, o, rays.size());
+        return o.read(*dev_);
+    }
+
+    /// Camera rays generated on the device (see camera_rays()).
+    void camera_rays(const CameraFrame& frame, Buffer<Ray>& rays, float jx = 0.5f, float jy = 0.5f) {
+        cl::camera_rays(*dev_, k_camera_, frame, rays, jx, jy);
+        ++launches_;
+    }
+
+    Device& device() noexcept { return *dev_; }
+    const Program& program() const noexcept { return program_; }
+    /// Kernel launches so far.
+    std::size_t launches() const noexcept { return launches_; }
+    Buffer<float>& positions() noexcept { return positions_; }
+    Buffer<Node>& nodes() noexcept { return nodes_; }
+
+private:
+    static void check_count(const Buffer<Ray>& rays, std::size_t n) {
+        if (n > rays.size()) throw std::out_of_range("raykit::cl::MeshTracer: more rays asked for than the buffer holds");
+        if (n > 0xFFFFFFFFu) throw std::length_error("raykit::cl::MeshTracer: more than 2^32 rays in one launch");
+    }
+
+    Device* dev_;
+    Program program_;
+    ::cl::Kernel k_closest_, k_any_, k_camera_;
+    Buffer<float> positions_;
+    Buffer<Triangle> triangles_;
+    Buffer<Node> nodes_;
+    Buffer<std::uint32_t> prim_ids_;
+    std::uint32_t node_count_ = 0;
+    std::size_t launches_ = 0;
+};
+
+}  // namespace raykit::cl

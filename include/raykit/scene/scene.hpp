@@ -1,0 +1,418 @@
+// raykit/scene/scene.hpp — a two-level scene: objects, instances, top-level BVH.
+//
+//   Scene scene;
+//   std::uint32_t rock = scene.add_object(make_icosphere(3));                 // static
+//   std::uint32_t flag = scene.add_object(cloth, ObjectKind::dynamic);
+//   scene.add_instance(rock, glm::translate(mat4(1), vec3(2, 0, 0)));
+//   scene.add_instance(flag);
+//   ...per frame:
+//   scene.move_vertices(flag, [&](const Vertex& v, std::uint32_t i) { return wave(v, i, params); });
+//   scene.set_transform(1, spin(time));
+//   scene.update_top_level();                     // rebuild (or refit) over instance world boxes
+//   Hit h = scene.intersect_closest(ray);         // h.inst = instance, h.prim = triangle of its object
+//
+// An object is a Mesh with its own bottom-level BVH (BinnedSahBuilder). A
+// static object never changes after add_object(). A dynamic object keeps an
+// untouched rest copy of its vertices (position, normal, uv): move_vertices()
+// computes every current vertex from its rest vertex — never from last
+// frame's — and refits the object's tree (topology kept, bvh/refit.hpp).
+//
+// An instance places an object with an affine transform (mat4 whose last row
+// is 0 0 0 1). Rays are traced in object space: the world ray is mapped by
+// the inverse transform (origin as a point, direction as a vector, not
+// normalised), so t is the same parameter in both spaces and hits of
+// different instances compare directly. Both maps are stored as row-major
+// 3x4 float matrices (Affine) and applied with explicit fused multiply-adds,
+// so the OpenCL kernels, which do the same, get the same object-space rays
+// bit for bit.
+//
+// The top-level BVH is built with BinnedSahBuilder over the instances' world
+// boxes (the object's root box, its 8 corners transformed in double, rounded
+// outwards and padded by 2^-20 of the largest coordinate, so rounding in
+// the object-space ray cannot lose a hit at the box boundary).
+// update_top_level() must be called after add_instance(), set_transform() or
+// move_vertices() and before tracing; tracing a stale scene throws.
+//
+// Ties: smaller t wins, then the smaller instance, then the smaller triangle
+// (Hit::closer_than), whatever the tree.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "raykit/bvh/binned_sah.hpp"
+#include "raykit/bvh/refit.hpp"
+#include "raykit/bvh/traverse.hpp"
+#include "raykit/math/hit.hpp"
+#include "raykit/scene/build.hpp"
+#include "raykit/scene/mesh.hpp"
+#include "raykit/scene/trace.hpp"
+#include "raykit/util/parallel.hpp"
+
+namespace raykit {
+
+/// One vertex as vertex stages see it. 32 bytes; crosses to OpenCL as rk_vertex.
+struct Vertex {
+    vec3 position{0.0f};
+    vec3 normal{0.0f};
+    vec2 uv{0.0f};
+};
+static_assert(sizeof(Vertex) == 32 && alignof(Vertex) == 4);
+static_assert(offsetof(Vertex, position) == 0 && offsetof(Vertex, normal) == 12 && offsetof(Vertex, uv) == 24);
+
+/// Row-major 3x4 affine map: row r is m[4r .. 4r+3]; p' = M·(p, 1).
+struct Affine {
+    float m[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+
+    /// The upper 3x4 of an affine mat4 (glm, column-major). Throws
+    /// std::invalid_argument when the last row is not (0, 0, 0, 1) or an
+    /// entry is not finite.
+    static Affine from_mat4(const mat4& t) {
+        check_affine(t);
+        Affine a;
+        for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 4; ++c) a.m[4 * r + c] = t[c][r];
+        return a;
+    }
+    /// The inverse of an affine mat4, computed in double and rounded once.
+    /// Throws std::invalid_argument for a singular or non-affine matrix.
+    static Affine inverse_of(const mat4& t) {
+        check_affine(t);
+        const glm::dmat4 d(t);
+        const double det = glm::determinant(glm::dmat3(d));
+        if (!(std::fabs(det) > 0.0) || !std::isfinite(det))
+            throw std::invalid_argument("raykit::Affine: transform is singular");
+        const glm::dmat4 inv = glm::inverse(d);
+        Affine a;
+        for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 4; ++c) a.m[4 * r + c] = static_cast<float>(inv[c][r]);
+        return a;
+    }
+
+    /// M·(p, 1), each row as fma(m0, x, fma(m1, y, fma(m2, z, m3))).
+    vec3 point(const vec3& p) const noexcept {
+        vec3 o;
+        for (int r = 0; r < 3; ++r) {
+            const float* row = m + 4 * r;
+            o[r] = std::fma(row[0], p.x, std::fma(row[1], p.y, std::fma(row[2], p.z, row[3])));
+        }
+        return o;
+    }
+    /// M·(d, 0), each row as fma(m0, x, fma(m1, y, m2·z)).
+    vec3 vector(const vec3& d) const noexcept {
+        vec3 o;
+        for (int r = 0; r < 3; ++r) {
+            const float* row = m + 4 * r;
+            o[r] = std::fma(row[0], d.x, std::fma(row[1], d.y, row[2] * d.z));
+        }
+        return o;
+    }
+
+private:
+    static void check_affine(const mat4& t) {
+        if (t[0][3] != 0.0f || t[1][3] != 0.0f || t[2][3] != 0.0f || t[3][3] != 1.0f)
+            throw std::invalid_argument("raykit::Affine: transform is not affine (last row must be 0 0 0 1)");
+        for (int c = 0; c < 4; ++c)
+            for (int r = 0; r < 4; ++r)
+                if (!std::isfinite(t[c][r])) throw std::invalid_argument("raykit::Affine: transform is not finite");
+    }
+};
+static_assert(sizeof(Affine) == 48);
+
+enum class ObjectKind { static_object, dynamic };
+
+struct SceneObject {
+    Mesh mesh;  ///< current geometry (for a dynamic object: as last moved)
+    Bvh bvh;
+    ObjectKind kind = ObjectKind::static_object;
+    std::vector<Vertex> rest;  ///< dynamic objects: the untouched rest vertices
+
+    bool dynamic() const noexcept { return kind == ObjectKind::dynamic; }
+    /// Root box of the bottom-level tree (empty for an empty object).
+    AABB bounds() const noexcept { return bvh.nodes.empty() ? AABB{} : bvh.nodes[0].box; }
+};
+
+struct SceneInstance {
+    std::uint32_t object = 0;
+    mat4 transform{1.0f};
+    Affine to_world;   ///< transform
+    Affine to_object;  ///< its inverse
+};
+
+/// How update_top_level() brings the top-level tree up to date.
+enum class TopLevelUpdate { rebuild, refit };
+
+/// World box of an object box under an affine transform: corners mapped in
+/// double, rounded outwards, padded by 2^-20 of the largest magnitude.
+inline AABB transformed_box(const AABB& box, const mat4& transform) {
+    if (box.is_empty()) return {};
+    const glm::dmat4 t(transform);
+    glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+    for (int k = 0; k < 8; ++k) {
+        const glm::dvec4 c((k & 1) ? box.max.x : box.min.x, (k & 2) ? box.max.y : box.min.y,
+                           (k & 4) ? box.max.z : box.min.z, 1.0);
+        const glm::dvec3 w(t * c);
+        lo = glm::min(lo, w);
+        hi = glm::max(hi, w);
+    }
+    const double mag = std::max({std::fabs(lo.x), std::fabs(lo.y), std::fabs(lo.z), std::fabs(hi.x),
+                                 std::fabs(hi.y), std::fabs(hi.z)});
+    const double pad = mag * 0x1p-20;
+    AABB out;
+    for (int a = 0; a < 3; ++a) {
+        out.min[a] = next_float_down(static_cast<float>(lo[a] - pad));
+        out.max[a] = next_float_up(static_cast<float>(hi[a] + pad));
+    }
+    return out;
+}
+
+class Scene {
+public:
+    /// Adds an object; builds its BVH with `cfg`. Returns its index.
+    std::uint32_t add_object(Mesh mesh, ObjectKind kind = ObjectKind::static_object,
+                             const BinnedSahBuilder::Config& cfg = {}) {
+        if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
+            throw std::invalid_argument("raykit::Scene::add_object: normals must be empty or one per vertex");
+        if (!mesh.texcoords.empty() && mesh.texcoords.size() != mesh.positions.size())
+            throw std::invalid_argument("raykit::Scene::add_object: texcoords must be empty or one per vertex");
+        for (const Triangle& t : mesh.triangles)
+            for (int c = 0; c < 3; ++c)
+                if (t.v[c] >= mesh.positions.size())
+                    throw std::invalid_argument("raykit::Scene::add_object: triangle vertex index out of range");
+        SceneObject o;
+        o.kind = kind;
+        o.bvh = build_bvh<BinnedSahBuilder>(mesh, cfg);
+        if (kind == ObjectKind::dynamic) {
+            o.rest.resize(mesh.positions.size());
+            for (std::size_t i = 0; i < o.rest.size(); ++i) {
+                o.rest[i].position = mesh.positions[i];
+                if (!mesh.normals.empty()) o.rest[i].normal = mesh.normals[i];
+                if (!mesh.texcoords.empty()) o.rest[i].uv = mesh.texcoords[i];
+            }
+        }
+        o.mesh = std::move(mesh);
+        objects_.push_back(std::move(o));
+        stale_ = true;
+        return static_cast<std::uint32_t>(objects_.size() - 1);
+    }
+
+    /// Places `object` with an affine `transform`. Returns the instance index.
+    std::uint32_t add_instance(std::uint32_t object, const mat4& transform = mat4(1.0f)) {
+        if (object >= objects_.size()) throw std::out_of_range("raykit::Scene::add_instance: no object " + std::to_string(object));
+        SceneInstance in;
+        in.object = object;
+        set(in, transform);
+        instances_.push_back(in);
+        stale_ = true;
+        return static_cast<std::uint32_t>(instances_.size() - 1);
+    }
+
+    void set_transform(std::uint32_t instance, const mat4& transform) {
+        if (instance >= instances_.size())
+            throw std::out_of_range("raykit::Scene::set_transform: no instance " + std::to_string(instance));
+        set(instances_[instance], transform);
+        stale_ = true;
+    }
+
+    /// Vertex stage of a dynamic object: vertex i becomes fn(rest[i], i)
+    /// (a Vertex); positions (and normals/uvs where the mesh has them) are
+    /// written, then the object's tree is refitted. Throws std::logic_error
+    /// for a static object.
+    template <class Fn>
+    void move_vertices(std::uint32_t object, Fn&& fn, unsigned threads = 0) {
+        SceneObject& o = dynamic_object(object, "move_vertices");
+        Mesh& m = o.mesh;
+        parallel_for(o.rest.size(), threads, [&](std::size_t i) {
+            const Vertex v = fn(static_cast<const Vertex&>(o.rest[i]), static_cast<std::uint32_t>(i));
+            m.positions[i] = v.position;
+            if (!m.normals.empty()) m.normals[i] = v.normal;
+            if (!m.texcoords.empty()) m.texcoords[i] = v.uv;
+        });
+        refit_object(object);
+    }
+
+    /// Sets a dynamic object's current positions directly (one per vertex;
+    /// e.g. read back from a device vertex stage) and refits its tree.
+    void set_positions(std::uint32_t object, const std::vector<vec3>& positions) {
+        SceneObject& o = dynamic_object(object, "set_positions");
+        if (positions.size() != o.mesh.positions.size())
+            throw std::invalid_argument("raykit::Scene::set_positions: wrong vertex count");
+        o.mesh.positions = positions;
+        refit_object(object);
+    }
+
+    /// Refits one object's tree to its current positions (bvh/refit.hpp).
+    void refit_object(std::uint32_t object) {
+        SceneObject& o = objects_.at(object);
+        const MeshView view(o.mesh);
+        refit(o.bvh, [&](std::uint32_t i) { return view.bounds(i); });
+        stale_ = true;
+    }
+
+    /// World box of an instance (see transformed_box()).
+    AABB world_box(std::uint32_t instance) const {
+        const SceneInstance& in = instances_.at(instance);
+        return transformed_box(objects_[in.object].bounds(), in.transform);
+    }
+
+    /// Brings the top-level tree up to date: a new BinnedSahBuilder tree over
+    /// the instance world boxes, or (refit) the same topology with new boxes
+    /// — only valid when no instance was added since the last rebuild (else
+    /// it rebuilds).
+    void update_top_level(TopLevelUpdate mode = TopLevelUpdate::rebuild) {
+        std::vector<AABB> boxes(instances_.size());
+        for (std::size_t i = 0; i < instances_.size(); ++i) boxes[i] = world_box(static_cast<std::uint32_t>(i));
+        update_top_level(boxes, mode);
+    }
+    /// Same, from world boxes computed elsewhere (one per instance, e.g. from
+    /// root boxes refitted on a device).
+    void update_top_level(const std::vector<AABB>& world_boxes, TopLevelUpdate mode = TopLevelUpdate::rebuild) {
+        if (world_boxes.size() != instances_.size())
+            throw std::invalid_argument("raykit::Scene::update_top_level: one box per instance needed");
+        if (mode == TopLevelUpdate::refit && top_.prim_ids.size() == instances_.size() && !instances_.empty()) {
+            refit(top_, [&](std::uint32_t i) { return world_boxes[i]; });
+        } else {
+            top_ = build_top_level(world_boxes, top_config_);
+        }
+        stale_ = false;
+    }
+
+    /// The top-level build used by update_top_level(): BinnedSahBuilder with
+    /// one instance per leaf by default.
+    static Bvh build_top_level(const std::vector<AABB>& world_boxes, const BinnedSahBuilder::Config& cfg) {
+        std::vector<vec3> centers(world_boxes.size());
+        for (std::size_t i = 0; i < world_boxes.size(); ++i)
+            centers[i] = world_boxes[i].is_empty() ? vec3(std::numeric_limits<float>::quiet_NaN()) : world_boxes[i].center();
+        return BinnedSahBuilder::build(world_boxes, centers, cfg);
+    }
+    /// Builder settings of the top-level tree (default: one instance per leaf).
+    BinnedSahBuilder::Config& top_level_config() noexcept { return top_config_; }
+    const BinnedSahBuilder::Config& top_level_config() const noexcept { return top_config_; }
+
+    // ------------------------------------------------------------ queries
+
+    /// Closest hit over all instances (h.inst set), or a miss.
+    Hit intersect_closest(const Ray& ray) const {
+        require_fresh();
+        Hit best;
+        float tmax = ray.tmax;
+        traverse<ClosestHit>(top_, ray, tmax, [&](std::uint32_t first, std::uint32_t count, float& tm) {
+            bool found = false;
+            for (std::uint32_t k = first; k < first + count; ++k) {
+                const std::uint32_t inst = top_.prim_ids[k];
+                const SceneInstance& in = instances_[inst];
+                const SceneObject& o = objects_[in.object];
+                Hit h = raykit::intersect_closest(o.mesh, o.bvh, object_ray(in, ray, tm));
+                if (!h.valid()) continue;
+                h.inst = inst;
+                if (h.closer_than(best)) {
+                    best = h;
+                    tm = h.t;
+                    found = true;
+                }
+            }
+            return found;
+        });
+        return best;
+    }
+
+    /// True when any instance is hit in [tmin, tmax].
+    bool intersect_any(const Ray& ray) const {
+        require_fresh();
+        float tmax = ray.tmax;
+        return traverse<AnyHit>(top_, ray, tmax, [&](std::uint32_t first, std::uint32_t count, float&) {
+            for (std::uint32_t k = first; k < first + count; ++k) {
+                const SceneInstance& in = instances_[top_.prim_ids[k]];
+                const SceneObject& o = objects_[in.object];
+                if (raykit::intersect_any(o.mesh, o.bvh, object_ray(in, ray, ray.tmax))) return true;
+            }
+            return false;
+        });
+    }
+
+    /// Oracle: every triangle of every instance, in object space (the same
+    /// ray mapping as intersect_closest, no trees). Equal to it bit for bit.
+    Hit brute_force_closest(const Ray& ray) const {
+        Hit best;
+        for (std::uint32_t i = 0; i < instances_.size(); ++i) {
+            const SceneInstance& in = instances_[i];
+            Hit h = raykit::brute_force_closest(objects_[in.object].mesh, object_ray(in, ray, ray.tmax));
+            if (!h.valid()) continue;
+            h.inst = i;
+            if (h.closer_than(best)) best = h;
+        }
+        return best;
+    }
+
+    /// All instances' triangles in world space as one mesh (vertices mapped by
+    /// Affine::point), plus for each of its triangles the (instance, triangle)
+    /// it came from: the world-space oracle, equal to the traced answers up to
+    /// rounding of the transforms.
+    std::pair<Mesh, std::vector<std::pair<std::uint32_t, std::uint32_t>>> world_mesh() const {
+        Mesh w;
+        std::vector<std::pair<std::uint32_t, std::uint32_t>> origin;
+        for (std::uint32_t i = 0; i < instances_.size(); ++i) {
+            const SceneInstance& in = instances_[i];
+            const Mesh& m = objects_[in.object].mesh;
+            const auto base = static_cast<std::uint32_t>(w.positions.size());
+            for (const vec3& p : m.positions) w.positions.push_back(in.to_world.point(p));
+            for (std::uint32_t t = 0; t < m.triangles.size(); ++t) {
+                const Triangle& tr = m.triangles[t];
+                w.triangles.push_back({{tr.v[0] + base, tr.v[1] + base, tr.v[2] + base}});
+                origin.emplace_back(i, t);
+            }
+        }
+        return {std::move(w), std::move(origin)};
+    }
+
+    /// The object-space ray for `in` with tmax replaced by `tmax`.
+    static Ray object_ray(const SceneInstance& in, const Ray& ray, float tmax) noexcept {
+        Ray r;
+        r.org = in.to_object.point(ray.org);
+        r.dir = in.to_object.vector(ray.dir);
+        r.tmin = ray.tmin;
+        r.tmax = tmax;
+        return r;
+    }
+
+    const std::vector<SceneObject>& objects() const noexcept { return objects_; }
+    const std::vector<SceneInstance>& instances() const noexcept { return instances_; }
+    const Bvh& top_level() const noexcept { return top_; }
+    /// True when update_top_level() is due.
+    bool stale() const noexcept { return stale_; }
+    std::size_t dynamic_object_count() const noexcept {
+        return static_cast<std::size_t>(std::count_if(objects_.begin(), objects_.end(), [](const SceneObject& o) { return o.dynamic(); }));
+    }
+
+private:
+    static void set(SceneInstance& in, const mat4& transform) {
+        in.to_object = Affine::inverse_of(transform);  // validates first
+        in.to_world = Affine::from_mat4(transform);
+        in.transform = transform;
+    }
+    SceneObject& dynamic_object(std::uint32_t object, const char* what) {
+        if (object >= objects_.size())
+            throw std::out_of_range(std::string("raykit::Scene::") + what + ": no object " + std::to_string(object));
+        SceneObject& o = objects_[object];
+        if (!o.dynamic())
+            throw std::logic_error(std::string("raykit::Scene::") + what + ": object " + std::to_string(object) +
+                                   " is static");
+        return o;
+    }
+    void require_fresh() const {
+        if (stale_) throw std::logic_error("raykit::Scene: call update_top_level() before tracing");
+    }
+
+    std::vector<SceneObject> objects_;
+    std::vector<SceneInstance> instances_;
+    Bvh top_;
+    BinnedSahBuilder::Config top_config_{.max_leaf_size = 1};
+    bool stale_ = true;
+};
+
+}  // namespace raykit

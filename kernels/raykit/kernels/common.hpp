@@ -1,0 +1,188 @@
+// raykit/kernels/common.hpp — OpenCL C twins of raykit's CPU math: robust
+// min/max, the slab test, the watertight ray/triangle test.
+//
+// Expects from the program preamble (raykit::cl::config_source()):
+//   RK_MAX_DEPTH         RAYKIT_BVH_MAX_DEPTH (traversal stack entries)
+//   RK_SLAB_EXIT_SCALE   raykit::kSlabExitScale as an exact hex float
+//   RK_FUSE_MSUB, RK_FUSE_T  how the host build rounds two Watertight expressions (below)
+//
+// Watertight test: the 2-D edge functions are evaluated in double when the
+// device has cl_khr_fp64 (a product of two floats is exact in double, so
+// each edge function is rounded once, the same way in both triangles sharing
+// an edge, whether or not the compiler fuses multiply-adds) — exactly the
+// CPU's method, so answers agree with intersect/triangle.hpp. Without fp64
+// they are evaluated in float with FP_CONTRACT OFF: each product rounded on
+// its own, then subtracted, which is antisymmetric in the two triangles
+// sharing an edge (watertight, but not bit-identical to the CPU).
+//
+// The remaining float operations that a compiler may fuse into fma
+// (A[kx] − sx·A[kz] and the t numerator) are written out explicitly, fused
+// or not as the host's own build of intersect/triangle.hpp does it
+// (RK_FUSE_MSUB, RK_FUSE_T from raykit::cl::host_float_config()), so the
+// device returns the CPU's t, u, v bit for bit whatever the host flags
+// (-O2 -march=native fuses; -O0/-O1, -ffp-contract=off or no FMA do not).
+#pragma once
+
+namespace raykit::kernels {
+
+inline constexpr const char* kCommon = R"CLC(
+#ifndef RK_EDGE_DOUBLE /* may be forced to 0 (-DRK_EDGE_DOUBLE=0) to use the float path */
+#ifdef cl_khr_fp64
+#define RK_EDGE_DOUBLE 1
+#else
+#define RK_EDGE_DOUBLE 0
+#endif
+#endif
+#if RK_EDGE_DOUBLE
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+#endif
+
+/* Hot helpers are forced inline: PoCL's compiler otherwise keeps them as
+   calls (outputs through memory), which costs ~15 % of trace throughput. */
+#define RK_INLINE __attribute__((always_inline))
+
+/* max/min ignoring a NaN in the first argument (raykit::robust_max/min). */
+RK_INLINE float rk_robust_max(float candidate, float current) { return candidate > current ? candidate : current; }
+RK_INLINE float rk_robust_min(float candidate, float current) { return candidate < current ? candidate : current; }
+
+/* Per-ray state of traversal: origin, 1/d, and per axis the offsets (in
+   floats, into a node's min[3] max[3]) of the near and far planes — the
+   octant choice of raykit::slab_test made once per ray. */
+typedef struct {
+    float org[3];
+    float inv[3];
+    int nearo[3];
+    int faro[3];
+    float tmin;
+} rk_slab_ray;
+
+RK_INLINE rk_slab_ray rk_slab_prepare(const float org[3], const float dir[3], float tmin) {
+    rk_slab_ray s;
+    for (int a = 0; a < 3; ++a) {
+        s.org[a] = org[a];
+        s.inv[a] = 1.0f / dir[a];
+        const int neg = signbit(dir[a]) ? 1 : 0;
+        s.nearo[a] = neg ? 3 + a : a;
+        s.faro[a] = neg ? a : 3 + a;
+    }
+    s.tmin = tmin;
+    return s;
+}
+
+/* raykit::slab_test on a node's box: the same operations in the same order. */
+RK_INLINE bool rk_slab(const rk_slab_ray* s, __global const rk_node* n, float tmax, float* tentry) {
+    __global const float* f = (__global const float*)n;  /* min[3], max[3] */
+    float t0 = s->tmin, t1 = tmax * RK_SLAB_EXIT_SCALE;
+    for (int a = 0; a < 3; ++a) {
+        const float tn = (f[s->nearo[a]] - s->org[a]) * s->inv[a];
+        const float tf = (f[s->faro[a]] - s->org[a]) * s->inv[a] * RK_SLAB_EXIT_SCALE;
+        t0 = rk_robust_max(tn, t0);
+        t1 = rk_robust_min(tf, t1);
+    }
+    *tentry = t0;
+    return t0 <= t1;
+}
+
+/* raykit::Watertight */
+typedef struct {
+    float org[3];
+    int kx, ky, kz;
+    float sx, sy, sz;
+} rk_wt_ray;
+
+RK_INLINE rk_wt_ray rk_wt_prepare(const float org[3], const float dir[3]) {
+    rk_wt_ray d;
+    for (int a = 0; a < 3; ++a) d.org[a] = org[a];
+    const float ax = fabs(dir[0]), ay = fabs(dir[1]), az = fabs(dir[2]);
+    d.kz = ax >= ay ? (ax >= az ? 0 : 2) : (ay >= az ? 1 : 2);
+    d.kx = d.kz == 2 ? 0 : d.kz + 1;
+    d.ky = d.kx == 2 ? 0 : d.kx + 1;
+    if (dir[d.kz] < 0.0f) {
+        const int t = d.kx;
+        d.kx = d.ky;
+        d.ky = t;
+    }
+    d.sx = dir[d.kx] / dir[d.kz];
+    d.sy = dir[d.ky] / dir[d.kz];
+    d.sz = 1.0f / dir[d.kz];
+    return d;
+}
+
+/* The two places where a compiler may fuse a multiply-add in the CPU's
+   Watertight test: A[kx] - sx*A[kz] and the t numerator. The host probes how
+   its own build computes them (raykit::cl::host_float_config) and sets
+   RK_FUSE_MSUB / RK_FUSE_T so the device does the same, explicitly. */
+#ifndef RK_FUSE_MSUB
+#define RK_FUSE_MSUB 1
+#endif
+#ifndef RK_FUSE_T
+#define RK_FUSE_T 1
+#endif
+RK_INLINE float rk_msub(float a, float s, float b) {
+#pragma OPENCL FP_CONTRACT OFF
+#if RK_FUSE_MSUB
+    return fma(-s, b, a);
+#else
+    return a - s * b;
+#endif
+}
+RK_INLINE float rk_tnum(float U, float Az, float V, float Bz, float W, float Cz) {
+#pragma OPENCL FP_CONTRACT OFF
+#if RK_FUSE_T
+    return fma(W, Cz, fma(U, Az, V * Bz));
+#else
+    return U * Az + V * Bz + W * Cz;
+#endif
+}
+
+/* Edge function in float for devices without fp64: each product rounded on
+   its own (no fused multiply-add), then subtracted. */
+RK_INLINE float rk_edge_float(float a, float b, float c, float d) {
+#pragma OPENCL FP_CONTRACT OFF
+    const float p = a * b;
+    const float q = c * d;
+    return p - q;
+}
+
+RK_INLINE bool rk_wt_intersect(const rk_wt_ray* d, float3 p0, float3 p1, float3 p2, float tmin, float tmax,
+                     float* t_out, float* u_out, float* v_out) {
+    const float A[3] = {p0.x - d->org[0], p0.y - d->org[1], p0.z - d->org[2]};
+    const float B[3] = {p1.x - d->org[0], p1.y - d->org[1], p1.z - d->org[2]};
+    const float C[3] = {p2.x - d->org[0], p2.y - d->org[1], p2.z - d->org[2]};
+    const float Ax = rk_msub(A[d->kx], d->sx, A[d->kz]), Ay = rk_msub(A[d->ky], d->sy, A[d->kz]);
+    const float Bx = rk_msub(B[d->kx], d->sx, B[d->kz]), By = rk_msub(B[d->ky], d->sy, B[d->kz]);
+    const float Cx = rk_msub(C[d->kx], d->sx, C[d->kz]), Cy = rk_msub(C[d->ky], d->sy, C[d->kz]);
+    float U, V, W, det;
+#if RK_EDGE_DOUBLE
+    const double Ud = (double)Cx * (double)By - (double)Cy * (double)Bx;
+    const double Vd = (double)Ax * (double)Cy - (double)Ay * (double)Cx;
+    const double Wd = (double)Bx * (double)Ay - (double)By * (double)Ax;
+    if ((Ud < 0.0 || Vd < 0.0 || Wd < 0.0) && (Ud > 0.0 || Vd > 0.0 || Wd > 0.0)) return false;
+    const double detd = Ud + Vd + Wd;
+    if (!(detd != 0.0)) return false;
+    U = (float)Ud;
+    V = (float)Vd;
+    W = (float)Wd;
+    det = (float)detd;
+#else
+    U = rk_edge_float(Cx, By, Cy, Bx);
+    V = rk_edge_float(Ax, Cy, Ay, Cx);
+    W = rk_edge_float(Bx, Ay, By, Ax);
+    if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return false;
+    det = U + V + W;
+#endif
+    if (!(det != 0.0f)) return false;
+    const float Az = d->sz * A[d->kz], Bz = d->sz * B[d->kz], Cz = d->sz * C[d->kz];
+    const float T = rk_tnum(U, Az, V, Bz, W, Cz);
+    const float inv = 1.0f / det;
+    const float t = T * inv;
+    if (!(t >= tmin && t <= tmax)) return false;
+    *t_out = t;
+    *u_out = V * inv;
+    *v_out = W * inv;
+    return true;
+}
+)CLC";
+
+
+}  // namespace raykit::kernels
