@@ -6,6 +6,8 @@ pkgs=(
   cmake g++ make pkg-config
   libglm-dev                      # math
   libstb-dev                      # image load/save (renderer)
+  opencl-c-headers opencl-clhpp-headers ocl-icd-opencl-dev  # OpenCL device path
+  pocl-opencl-icd                 # the default OpenCL device: PoCL on the CPU
   libgtest-dev libbenchmark-dev   # tests, benchmarks
   libtinyobjloader-dev            # test oracle for the OBJ loader
   assimp-testmodels               # real OBJ/SMD files for the loader tests
