@@ -132,14 +132,14 @@ std::vector<Ray> random_rays(const Mesh& m, std::size_t n, std::uint64_t seed) {
 
 /// A mesh, its primitive refs, rays and the brute-force answers (computed
 /// once, shared by every builder).
-struct Scene {
+struct TestScene {
     std::string name;
     Mesh mesh;
     PrimitiveRefs refs;
     std::vector<Ray> rays;
     std::vector<Hit> oracle;
 
-    Scene(std::string nm, Mesh m, std::size_t nrays, std::uint64_t seed) : name(std::move(nm)), mesh(std::move(m)) {
+    TestScene(std::string nm, Mesh m, std::size_t nrays, std::uint64_t seed) : name(std::move(nm)), mesh(std::move(m)) {
         refs = primitive_refs(mesh);
         rays = random_rays(mesh, nrays, seed);
         oracle.reserve(rays.size());
@@ -147,7 +147,7 @@ struct Scene {
     }
 };
 
-void expect_valid(const Scene& s, const Bvh& bvh, const std::string& what, unsigned leaf = 8) {
+void expect_valid(const TestScene& s, const Bvh& bvh, const std::string& what, unsigned leaf = 8) {
     EXPECT_EQ(validate(bvh, s.refs.boxes), "") << what << " over " << s.name;
     EXPECT_LE(bvh.depth(), RAYKIT_BVH_MAX_DEPTH) << what << " over " << s.name;
     for (const Node& n : bvh.nodes) {
@@ -164,7 +164,7 @@ void expect_valid(const Scene& s, const Bvh& bvh, const std::string& what, unsig
 }
 
 /// Closest and any-hit queries equal the brute-force oracle on every ray.
-void expect_matches_brute_force(const Scene& s, const Bvh& bvh, const std::string& what) {
+void expect_matches_brute_force(const TestScene& s, const Bvh& bvh, const std::string& what) {
     std::size_t bad = 0;
     for (std::size_t i = 0; i < s.rays.size(); ++i) {
         const Hit h = intersect_closest(s.mesh, bvh, s.rays[i]);
@@ -241,12 +241,12 @@ Mesh degenerate_mesh(std::size_t soup) {
 
 TEST(Builders, EverySettingMatchesBruteForceOnSoupsAndATorus) {
     const std::size_t rays = scaled(600, 200);
-    std::vector<Scene> scenes;
+    std::vector<TestScene> scenes;
     scenes.emplace_back("soup 1", make_random_soup(scaled(3000, 1000), 1, 0.05f), rays, 11);
     scenes.emplace_back("soup 2", make_random_soup(scaled(1500, 600), 2, 0.2f), rays, 12);
     scenes.emplace_back("torus", make_bumpy_torus(scaled(20000, 4000)), rays, 13);
     for (const Setting& st : all_settings())
-        for (const Scene& sc : scenes)
+        for (const TestScene& sc : scenes)
             for (unsigned leaf : {1u, 8u}) {
                 const std::string what = st.name + " leaf " + std::to_string(leaf);
                 const Bvh bvh = st.build(sc.refs.boxes, sc.refs.centers, 0, leaf);
@@ -317,7 +317,7 @@ TEST(Builders, EmptyAndTinyInputs) {
         EXPECT_TRUE(e.nodes.empty()) << st.name;
         EXPECT_TRUE(e.prim_ids.empty()) << st.name;
         for (std::size_t n : {1u, 2u, 3u}) {
-            const Scene s("soup " + std::to_string(n), make_random_soup(n, 5 + n, 0.3f), 300, n);
+            const TestScene s("soup " + std::to_string(n), make_random_soup(n, 5 + n, 0.3f), 300, n);
             for (unsigned leaf : {1u, 8u}) {
                 const Bvh bvh = st.build(s.refs.boxes, s.refs.centers, 0, leaf);
                 expect_valid(s, bvh, st.name, leaf);
@@ -339,10 +339,10 @@ TEST(Builders, CoincidentCentroidsAndIdenticalTriangles) {
         }
         rotated.push_back(t);
     }
-    const Scene s1("identical", mesh_of_triangles(same), 300, 1);
-    const Scene s2("rotated", mesh_of_triangles(rotated), 600, 3);
+    const TestScene s1("identical", mesh_of_triangles(same), 300, 1);
+    const TestScene s2("rotated", mesh_of_triangles(rotated), 600, 3);
     for (const Setting& st : all_settings())
-        for (const Scene* s : {&s1, &s2})
+        for (const TestScene* s : {&s1, &s2})
             for (unsigned leaf : {1u, 4u}) {
                 const Bvh bvh = st.build(s->refs.boxes, s->refs.centers, 0, leaf);
                 expect_valid(*s, bvh, st.name, leaf);
@@ -357,7 +357,7 @@ TEST(Builders, CoincidentCentroidsAndIdenticalTriangles) {
 }
 
 TEST(Builders, DegenerateNeedleAndNanTrianglesBuildValidTrees) {
-    const Scene s("degenerate", degenerate_mesh(scaled(2000, 800)), scaled(1500, 400), 5);
+    const TestScene s("degenerate", degenerate_mesh(scaled(2000, 800)), scaled(1500, 400), 5);
     const auto finite = static_cast<std::uint32_t>(s.mesh.triangle_count() - 50);
     for (const Setting& st : all_settings()) {
         const Bvh bvh = st.build(s.refs.boxes, s.refs.centers, 0, 8);
@@ -390,7 +390,7 @@ TEST(Builders, DegenerateNeedleAndNanTrianglesBuildValidTrees) {
 /// The deepest layout test_bvh knows: every builder stays within the bound
 /// (PLOC merges chains here; the depth pass must cut them).
 TEST(Builders, GeometricProgressionStaysWithinTheDepthBound) {
-    const Scene s("geometric progression", geometric_progression(4000), scaled(800, 300), 2);
+    const TestScene s("geometric progression", geometric_progression(4000), scaled(800, 300), 2);
     std::vector<Setting> settings = default_settings();
     for (const Setting& st : all_settings())
         if (st.name.rfind("ploc", 0) == 0 || st.name.find("/W32") != std::string::npos) settings.push_back(st);
@@ -408,15 +408,14 @@ TEST(Builders, GeometricProgressionStaysWithinTheDepthBound) {
 /// primitive plus the rest) of 5000 levels is cut to the bound.
 TEST(Builders, DepthPassCutsADegenerateMergeTree) {
     for (std::uint32_t n : {65u, 66u, 200u, 5000u}) {
-        const Scene s("caterpillar", make_random_soup(n, n, 0.05f), 200, n);
+        const TestScene s("caterpillar", make_random_soup(n, n, 0.05f), 200, n);
         const PrimitiveRefs& r = s.refs;
         for (bool left_deep : {false, true}) {
             detail::MergeTree t;
             t.prims = n;
             std::uint32_t cur = 0;
             for (std::uint32_t i = 1; i < n; ++i) {
-                t.kids.push_back(left_deep ? std::array<std::uint32_t, 2>{cur, i} : std::array<std::uint32_t, 2>{i, cur});
-                cur = n + static_cast<std::uint32_t>(t.kids.size() - 1);
+                cur = left_deep ? t.add(cur, i) : t.add(i, cur);
                 t.close_batch();
             }
             t.root = cur;
@@ -446,7 +445,7 @@ TEST(Builders, InvalidInputThrows) {
 }
 
 TEST(Builders, BuildBvhTakesEveryBuilder) {
-    const Scene s("torus", make_bumpy_torus(5000), 300, 4);
+    const TestScene s("torus", make_bumpy_torus(5000), 300, 4);
     const Bvh a = build_bvh<PairwiseBuilder>(s.mesh, {});
     const Bvh b = build_bvh<SortAxisBuilder>(s.mesh, {});
     const Bvh c = build_bvh<PlocBuilder>(s.mesh, {});

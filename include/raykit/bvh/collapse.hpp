@@ -364,19 +364,69 @@ inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit,
     }
 }
 
+/// What a parent needs from a finished subtree for the leaf collapse.
+struct SubtreeCost {
+    std::uint32_t count;  ///< primitives below
+    std::uint32_t out;    ///< output nodes below (1: the subtree becomes one leaf)
+    float cost;           ///< best SAH cost (a leaf's, or a split's with the children's best)
+};
+
+/// Per inner node: box, children and collapse data (bottom-up), then its
+/// place in the output (top-down).
+struct MergeInfo {
+    AABB box;
+    std::uint32_t kid[2];
+    SubtreeCost sub;
+    std::uint32_t slot, desc, first;  // output slot (kInside: within a leaf), its children's slot, first prim_ids slot
+};
+
+/// The collapse rule for a primitive (a one-primitive leaf)...
+inline SubtreeCost primitive_cost(const AABB& real_box, const LeafCollapseConfig& cfg) noexcept {
+    return {1, 1, cfg.intersection_cost * real_box.half_area()};
+}
+/// ... and for an inner node with box `box` over subtrees a and b: a leaf
+/// when it holds at most max_leaf_size primitives and Ci·SA·n ≤ Ct·SA +
+/// cost(a) + cost(b).
+inline SubtreeCost node_cost(const AABB& box, const SubtreeCost& a, const SubtreeCost& b,
+                             const LeafCollapseConfig& cfg) noexcept {
+    const float sa = box.half_area();
+    const std::uint32_t cnt = a.count + b.count;
+    const float split = cfg.traversal_cost * sa + (a.cost + b.cost);
+    const float leaf = cfg.intersection_cost * sa * float(cnt);
+    if (cnt <= std::max(1u, cfg.max_leaf_size) && leaf <= split) return {cnt, 1, leaf};
+    return {cnt, 1 + a.out + b.out, split};
+}
+
 /// Topology of a bottom-up build: ids < prims are primitives, id prims + k
-/// is the inner node with children kids[k].
+/// is the inner node with children info[k].kid.
 struct MergeTree {
     std::uint32_t prims = 0;
-    RawArray<std::array<std::uint32_t, 2>> kids;
-    /// Exclusive ends (indices into kids) of the batches; the nodes of one
+    /// One record per inner node. Builders set kid; they may also fill box
+    /// (the real bounds) and sub and then set info_ready, else
+    /// finish_bottom_up computes those.
+    RawArray<MergeInfo> info;
+    bool info_ready = false;
+    /// Exclusive ends (indices into info) of the batches; the nodes of one
     /// batch only have children among the primitives and earlier batches.
     std::vector<std::uint32_t> batch_end;
     std::uint32_t root = 0;
 
+    std::size_t size() const noexcept { return info.size(); }
+    void set(std::size_t k, std::uint32_t a, std::uint32_t b) noexcept {
+        info[k].kid[0] = a;
+        info[k].kid[1] = b;
+    }
+    /// Appends an inner node over a and b; returns its id.
+    std::uint32_t add(std::uint32_t a, std::uint32_t b) {
+        MergeInfo in{};
+        in.kid[0] = a;
+        in.kid[1] = b;
+        info.push_back(in);
+        return prims + static_cast<std::uint32_t>(info.size() - 1);
+    }
     /// Marks the end of the current batch (no-op for an empty batch).
     void close_batch() {
-        const auto k = static_cast<std::uint32_t>(kids.size());
+        const auto k = static_cast<std::uint32_t>(info.size());
         if (batch_end.empty() ? k > 0 : batch_end.back() < k) batch_end.push_back(k);
     }
 };
@@ -407,12 +457,12 @@ inline int ceil_log2(std::uint64_t c) noexcept { return c <= 1 ? 0 : std::bit_wi
 inline bool limit_depth(MergeTree& t, std::span<const vec3> centers) {
     constexpr int D = RAYKIT_BVH_MAX_DEPTH;
     const std::uint32_t n = t.prims;
-    const std::size_t k0 = t.kids.size();
+    const std::size_t k0 = t.size();
     std::vector<std::uint32_t> height(k0), count(k0);
     auto h_of = [&](std::uint32_t id) -> std::uint32_t { return id < n ? 0u : height[id - n]; };
     auto c_of = [&](std::uint32_t id) -> std::uint32_t { return id < n ? 1u : count[id - n]; };
     for (std::size_t k = 0; k < k0; ++k) {
-        const auto [a, b] = t.kids[k];
+        const std::uint32_t a = t.info[k].kid[0], b = t.info[k].kid[1];
         height[k] = 1 + std::max(h_of(a), h_of(b));
         count[k] = c_of(a) + c_of(b);
     }
@@ -426,8 +476,7 @@ inline bool limit_depth(MergeTree& t, std::span<const vec3> centers) {
         for (std::uint32_t i = b; i < e; ++i) cb.grow(centers[ids[i]]);
         const std::uint32_t mid = median_partition(ids, b, e, centers, max_axis(cb.extent()));
         const std::uint32_t l = self(self, b, mid), r = self(self, mid, e);
-        t.kids.push_back({l, r});
-        return n + static_cast<std::uint32_t>(t.kids.size() - 1);
+        return t.add(l, r);
     };
     auto rebuild = [&](std::uint32_t v) -> std::uint32_t {
         ids.clear();
@@ -438,8 +487,8 @@ inline bool limit_depth(MergeTree& t, std::span<const vec3> centers) {
             if (x < n) {
                 ids.push_back(x);
             } else {
-                stack.push_back(t.kids[x - n][1]);
-                stack.push_back(t.kids[x - n][0]);
+                stack.push_back(t.info[x - n].kid[1]);
+                stack.push_back(t.info[x - n].kid[0]);
             }
         }
         return median_build(median_build, 0, static_cast<std::uint32_t>(ids.size()));
@@ -460,7 +509,7 @@ inline bool limit_depth(MergeTree& t, std::span<const vec3> centers) {
         work.pop_back();
         if (fits(it.id, it.depth)) continue;
         const std::uint32_t k = it.id - n;  // an inner node: primitives always fit
-        const std::uint32_t a = t.kids[k][0], b = t.kids[k][1];
+        const std::uint32_t a = t.info[k].kid[0], b = t.info[k].kid[1];
         const int cd = it.depth + 1;
         if ((fits(a, cd) || rebuildable(a, cd)) && (fits(b, cd) || rebuildable(b, cd))) {
             work.push_back({b, cd, k, 1});
@@ -468,7 +517,7 @@ inline bool limit_depth(MergeTree& t, std::span<const vec3> centers) {
         } else {
             const std::uint32_t nid = rebuild(it.id);
             if (it.parent == kNone) t.root = nid;
-            else t.kids[it.parent][it.side] = nid;
+            else t.info[it.parent].kid[it.side] = nid;
         }
     }
     return true;
@@ -478,7 +527,7 @@ inline bool limit_depth(MergeTree& t, std::span<const vec3> centers) {
 /// parents); large batches are split among threads.
 template <class Fn>
 void sweep_batches(const MergeTree& t, unsigned threads, Fn& node) {
-    const std::size_t K = t.kids.size();
+    const std::size_t K = t.size();
     std::size_t begin = 0;
     for (const std::uint32_t end_u : t.batch_end) {
         const std::size_t end = std::min<std::size_t>(end_u, K);
@@ -513,52 +562,29 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
 
     // bottom-up sweep: real boxes, primitive counts, best SAH cost, output
     // size, packed per node so that the top-down pass touches one record
-    struct Info {
-        AABB box;
-        std::uint32_t kid[2];
-        std::uint32_t count;  // primitives below
-        std::uint32_t out;    // output nodes below (1: a leaf)
-        float cost;           // best SAH cost
-        // filled top-down: output slot (kInside: within a collapsed leaf),
-        // first slot of its descendants, first prim_ids slot
-        std::uint32_t slot, desc, first;
-    };
-    const std::size_t K = t.kids.size();
-    RawArray<Info> info(K);
-    const float ct = cfg.traversal_cost, ci = cfg.intersection_cost;
-    const std::uint32_t max_leaf = std::max(1u, cfg.max_leaf_size);
+    using Info = MergeInfo;
+    RawArray<Info>& info = t.info;
     auto node = [&](std::size_t k) {
-        const auto [a, b] = t.kids[k];
+        const std::uint32_t a = info[k].kid[0], b = info[k].kid[1];
         Info in;
         in.kid[0] = a;
         in.kid[1] = b;
-        std::uint32_t cnt = 0, o = 1;
-        float cc = 0.0f;
-        for (const std::uint32_t c : {a, b}) {
-            if (c < n) {
-                in.box.grow(boxes[c]);
-                cnt += 1;
-                cc += ci * boxes[c].half_area();
-                o += 1;
-            } else {
-                const Info& ch = info[c - n];
-                in.box.grow(ch.box);
-                cnt += ch.count;
-                cc += ch.cost;
-                o += ch.out;
-            }
-        }
-        const float sa = in.box.half_area();
-        const float split = ct * sa + cc;
-        const float leaf = ci * sa * float(cnt);
-        in.count = cnt;
-        if (cnt <= max_leaf && leaf <= split) {
-            in.cost = leaf;
-            in.out = 1;
+        SubtreeCost sa, sb;
+        if (a < n) {
+            in.box = boxes[a];
+            sa = primitive_cost(boxes[a], cfg);
         } else {
-            in.cost = split;
-            in.out = o;
+            in.box = info[a - n].box;
+            sa = info[a - n].sub;
         }
+        if (b < n) {
+            in.box.grow(boxes[b]);
+            sb = primitive_cost(boxes[b], cfg);
+        } else {
+            in.box.grow(info[b - n].box);
+            sb = info[b - n].sub;
+        }
+        in.sub = node_cost(in.box, sa, sb, cfg);
         info[k] = in;
     };
     int fork_depth = 0;
@@ -575,18 +601,18 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
             if (id < n) return;
             const std::uint32_t k = id - n;
             fork_join(
-                depth < fork_depth, [&] { self(self, t.kids[k][0], depth + 1); },
-                [&] { self(self, t.kids[k][1], depth + 1); });
+                depth < fork_depth, [&] { self(self, info[k].kid[0], depth + 1); },
+                [&] { self(self, info[k].kid[1], depth + 1); });
             node(k);
         };
         sweep(sweep, t.root, 0);
-    } else {
+    } else if (!t.info_ready) {
         sweep_batches(t, threads, node);
     }
 
     // top-down output, pre-order with children side by side
     const std::uint32_t root = t.root;
-    const std::uint32_t total = root < n ? 1u : info[root - n].out;
+    const std::uint32_t total = root < n ? 1u : info[root - n].sub.out;
     bvh.nodes.resize(total);
     bvh.prim_ids.resize(n);
     Node* nodes = bvh.nodes.data();
@@ -604,12 +630,12 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
         auto down = [&](std::size_t k) {
             const Info& in = info[k];
             const std::uint32_t a = in.kid[0];
-            const std::uint32_t out_a = a < n ? 1u : info[a - n].out;
-            const std::uint32_t cnt_a = a < n ? 1u : info[a - n].count;
+            const std::uint32_t out_a = a < n ? 1u : info[a - n].sub.out;
+            const std::uint32_t cnt_a = a < n ? 1u : info[a - n].sub.count;
             std::uint32_t cslot[2] = {kInside, kInside}, cdesc[2] = {0, 0};
             if (in.slot != kInside) {
-                if (in.out == 1) {
-                    nodes[in.slot] = Node{in.box, in.first, in.count};
+                if (in.sub.out == 1) {
+                    nodes[in.slot] = Node{in.box, in.first, in.sub.count};
                 } else {
                     nodes[in.slot] = Node{in.box, in.desc, 0};
                     cslot[0] = in.desc;
@@ -655,8 +681,8 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
             return;
         }
         const Info& in = info[id - n];
-        if (in.out == 1) {  // collapsed: gather the subtree's primitives left to right
-            o = Node{in.box, first, in.count};
+        if (in.sub.out == 1) {  // collapsed: gather the subtree's primitives left to right
+            o = Node{in.box, first, in.sub.count};
             std::uint32_t at = first;
             std::uint32_t st[RAYKIT_BVH_MAX_DEPTH + 2];
             int sp = 0;
@@ -674,10 +700,10 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
         }
         o = Node{in.box, desc, 0};
         const std::uint32_t a = in.kid[0], b = in.kid[1];
-        const std::uint32_t out_a = a < n ? 1u : info[a - n].out;
-        const std::uint32_t cnt_a = a < n ? 1u : info[a - n].count;
+        const std::uint32_t out_a = a < n ? 1u : info[a - n].sub.out;
+        const std::uint32_t cnt_a = a < n ? 1u : info[a - n].sub.count;
         fork_join(
-            depth < fork_depth && in.count >= 8192,
+            depth < fork_depth && in.sub.count >= 8192,
             [&] { self(self, a, desc, desc + 2, first, depth + 1); },
             [&] { self(self, b, desc + 1, desc + 2 + (out_a - 1), first + cnt_a, depth + 1); });
     };

@@ -394,7 +394,7 @@ private:
         const detail::SanitizedCenters sc = detail::sanitize_centers(centers, threads);
         detail::MergeTree tree;
         tree.prims = n;
-        tree.kids.reserve(n > 0 ? n - 1 : 0);
+        tree.info.reserve(n > 0 ? n - 1 : 0);
         Level cur, next;
         cur.centre.assign(sc.view.begin(), sc.view.end());
         cur.box.resize(n);
@@ -410,15 +410,15 @@ private:
                                               ? pair_brute(cur, area, pairs)
                                               : pair_fast(cur, area, threads, pairs);
             const std::size_t np = pairs.size(), m2 = np + (carried != kNone);
-            const auto base = static_cast<std::uint32_t>(tree.kids.size());
-            tree.kids.resize(base + np);
+            const auto base = static_cast<std::uint32_t>(tree.size());
+            tree.info.resize(base + np);
             next.centre.resize(m2);
             next.box.resize(m2);
             next.node.resize(m2);
             detail::par_for(np, threads, [&](std::size_t t) {
                 const Pair p = pairs[t];
                 const AABB b = merge(cur.box[p.a], cur.box[p.b]);
-                tree.kids[base + t] = {cur.node[p.a], cur.node[p.b]};
+                tree.set(base + t, cur.node[p.a], cur.node[p.b]);
                 next.box[t] = b;
                 next.centre[t] = detail::box_centre(b);
                 next.node[t] = n + base + static_cast<std::uint32_t>(t);

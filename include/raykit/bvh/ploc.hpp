@@ -70,7 +70,7 @@ struct PlocBuilder {
         const detail::SanitizedCenters sc = detail::sanitize_centers(centers, threads);
         detail::MergeTree tree;
         tree.prims = n;
-        tree.kids.reserve(n > 0 ? n - 1 : 0);
+        tree.info.reserve(n > 0 ? n - 1 : 0);
 
         // Morton order
         detail::RawArray<std::uint32_t> order(n);
@@ -128,8 +128,8 @@ struct PlocBuilder {
             }
             // 3. merge and compact; remap[i] = i's new index (for a dropped
             //    cluster: the index of the next survivor)
-            const auto base = static_cast<std::uint32_t>(tree.kids.size());
-            tree.kids.resize(base + merges[chunks]);
+            const auto base = static_cast<std::uint32_t>(tree.size());
+            tree.info.resize(base + merges[chunks]);
             next.resize(keeps[chunks]);
             remap.resize(m);
             parallel_chunks(m, chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
@@ -140,7 +140,7 @@ struct PlocBuilder {
                     remap[i] = kp;
                     if (mutual && j < i) continue;
                     if (mutual) {
-                        tree.kids[base + mg] = {cur.node[i], cur.node[j]};
+                        tree.set(base + mg, cur.node[i], cur.node[j]);
                         next.set(kp++, merge(cur.box(i), cur.box(j)), n + base + mg);
                         ++mg;
                     } else {
@@ -169,7 +169,7 @@ struct PlocBuilder {
                     if (!(nn[j] == i && j < i)) nn_next[remap[i]] = remap[j];
                 }
                 std::swap(cur, next);
-                incremental_phase(cur, nn_next, dirty, tree, n, R);
+                incremental_phase(cur, nn_next, dirty, tree, R);
                 break;
             }
             std::swap(cur, next);
@@ -236,7 +236,7 @@ private:
     /// and only clusters whose window changed search again. A round costs
     /// O(changes·R) instead of O(clusters·R).
     static void incremental_phase(Clusters& c, detail::RawArray<std::uint32_t>& nn, const std::vector<std::uint8_t>& dirty0,
-                                  detail::MergeTree& tree, std::uint32_t n, std::size_t R) {
+                                  detail::MergeTree& tree, std::size_t R) {
         constexpr std::uint32_t kNone = 0xFFFFFFFFu;
         const auto m = static_cast<std::uint32_t>(c.size());
         std::vector<std::uint32_t> prev(m), next(m), stamp(m, 0), dirty, win;
@@ -280,9 +280,8 @@ private:
             pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
             // 3. merge in position order (the node numbering of step 3)
             for (const auto [a, b] : pairs) {
-                const auto id = static_cast<std::uint32_t>(tree.kids.size());
-                tree.kids.push_back({c.node[a], c.node[b]});
-                c.set(a, merge(c.box(a), c.box(b)), n + id);
+                const std::uint32_t id = tree.add(c.node[a], c.node[b]);
+                c.set(a, merge(c.box(a), c.box(b)), id);
                 if (prev[b] != kNone) next[prev[b]] = next[b];
                 if (next[b] != kNone) prev[next[b]] = prev[b];
                 dead[b] = 1;
