@@ -59,7 +59,7 @@ constexpr const char* kUsage = R"(usage:
   --window W       sortaxis: candidates per element, default 6
   --axis A         sortaxis: x | longest | morton (default)
   --metric M       pairwise, sortaxis: centre (default) | area
-  --radius R       ploc: neighbours searched each way, default 16
+  --radius R       ploc: neighbours searched each way, default 8
   --threads T      worker threads, 0 = all (default)
   --test NAME      ray/triangle test: watertight (default), mt (Moller-Trumbore), thesis
 skin: prints the skinned position of every triangle corner (triangles in file order), one "x y z" per line;
@@ -130,8 +130,8 @@ BuildOptions tree_options(const Args& a) {
     }
     o.max_leaf_size = a.number<unsigned>("--leaf", 8);
     o.threads = a.number<unsigned>("--threads", 0);
-    o.window = a.number<unsigned>("--window", 6);
-    o.radius = a.number<unsigned>("--radius", 16);
+    o.window = a.number<unsigned>("--window", o.window);
+    o.radius = a.number<unsigned>("--radius", o.radius);
     if (o.max_leaf_size < 1) throw UsageError("--leaf must be at least 1");
     if (o.window < 1) throw UsageError("--window must be at least 1");
     if (o.radius < 1 || o.radius > 1024) throw UsageError("--radius must be in 1..1024");

@@ -29,10 +29,10 @@ struct BuildOptions {
     Builder builder = Builder::sah;
     unsigned max_leaf_size = 8;  ///< all builders
     unsigned threads = 0;        ///< all builders; 0 = all hardware threads
-    unsigned window = 6;         ///< sortaxis: W
+    unsigned window = SortAxisBuilder::Config{}.window;  ///< sortaxis: W
     Axis axis = Axis::morton;    ///< sortaxis
     Metric metric = Metric::centre;  ///< pairwise, sortaxis
-    unsigned radius = 16;        ///< ploc: R
+    unsigned radius = PlocBuilder::Config{}.radius;  ///< ploc: R
 
     static Builder parse_builder(std::string_view s) {
         if (s == "sah") return Builder::sah;
