@@ -12,7 +12,9 @@
 //       Throws RaykitCliRenderUsageError (a std::invalid_argument) for bad usage — the caller
 //       should print raykit_cli_render_usage() and exit with status 2 — and other
 //       std::exceptions (raykit::ParseError, std::runtime_error, ...) for everything else,
-//       e.g. "--device cl: ... not available yet".
+//       e.g. "--device cl: ... not available yet" in builds without OpenCL (RAYKIT_CLI_HAVE_CL).
+//       --device cl renders on the OpenCL device (raykit/cl/render.hpp: 1 spp at pixel centres,
+//       whitted, normals, depth) and reports the second frame's time (the first builds kernels).
 //   const char* raykit_cli_render_usage();
 //
 // Defaults: no --camera frames the whole scene (bounding-sphere fit, looking from front-right-
@@ -43,6 +45,10 @@
 #include "raykit/io/obj.hpp"
 #include "raykit/render/render_cpu.hpp"
 #include "raykit/scene/build_options.hpp"
+#if defined(RAYKIT_CLI_HAVE_CL)
+#include "raykit/cl.hpp"
+#include "raykit/cl/render.hpp"
+#endif
 
 /// Bad command-line usage of `raykit render`.
 struct RaykitCliRenderUsageError : std::invalid_argument {
@@ -71,7 +77,7 @@ inline const char* raykit_cli_render_usage() {
   --seed S                  random seed (default 0)
   --no-jitter               samples at stratum centres (1 spp = pixel centres)
   --threads T               worker threads, 0 = all (default 0)
-  --device cpu|cl           renderer (default cpu; cl is not available yet)
+  --device cpu|cl           renderer (default cpu; cl: OpenCL device, 1 spp, whitted/normals/depth)
   --builder NAME            BVH builder: sah (default), pairwise, sortaxis, ploc
   --leaf-size N             largest BVH leaf (default 8)
   --no-leaf-triangles       trace through the index triangles instead of the leaf-order copy
@@ -203,9 +209,11 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
     const cr::Parsed p = cr::parse(argc, argv, first_arg);
     if (p.pos.size() != 2) throw RaykitCliRenderUsageError("render takes SCENE.obj OUT.png");
     const std::string device = p.last("--device") ? (*p.last("--device"))[0] : "cpu";
+#if !defined(RAYKIT_CLI_HAVE_CL)
     if (device == "cl")
-        throw std::runtime_error("--device cl: the OpenCL renderer is not available yet (use --device cpu)");
-    if (device != "cpu") throw RaykitCliRenderUsageError("unknown --device '" + device + "' (known: cpu, cl)");
+        throw std::runtime_error("--device cl: the OpenCL renderer is not available yet in this build (use --device cpu)");
+#endif
+    if (device != "cpu" && device != "cl") throw RaykitCliRenderUsageError("unknown --device '" + device + "' (known: cpu, cl)");
 
     const auto width = cr::number_or<std::uint32_t>(p, "--width", 640);
     const auto height = cr::number_or<std::uint32_t>(p, "--height", 480);
@@ -280,6 +288,44 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
         }
     }
     if (rs.lights.empty()) rs.lights.push_back(default_key_light(cam));
+
+#if defined(RAYKIT_CLI_HAVE_CL)
+    // ---- render on the OpenCL device (raykit/cl/render.hpp): one sample per pixel through the
+    // pixel centre, shaders normals, depth, whitted. A first frame builds the program and lets
+    // PoCL compile its kernels; the second frame is the one timed ("frame").
+    if (device == "cl") {
+        if (set.spp != 1) throw RaykitCliRenderUsageError("--device cl renders 1 sample per pixel (use --spp 1)");
+        if (set.shade.shader != ShaderKind::whitted && set.shade.shader != ShaderKind::normals &&
+            set.shade.shader != ShaderKind::depth)
+            throw RaykitCliRenderUsageError(std::string("--device cl: shader '") + shader_name(set.shade.shader) +
+                                            "' is not available on the device (whitted, normals, depth)");
+        raykit::cl::Device& dev = raykit::cl::Device::shared();
+        auto tu = Clock::now();
+        raykit::cl::DeviceRenderer renderer(dev, rs.view());
+        const double upload_ms = ms_since(tu);
+        raykit::cl::DeviceRenderStats first, st;
+        (void)renderer.render(cam, set.shade, &first);
+        const Image img = renderer.render(cam, set.shade, &st);
+        t0 = Clock::now();
+        const std::filesystem::path out = p.pos[1];
+        PngOptions po;
+        po.alpha = p.has("--alpha");
+        if (out.extension() == ".pfm" || out.extension() == ".PFM") write_pfm(img, out);
+        else write_png(img, out, po);
+        if (auto* v = p.last("--pfm")) write_pfm(img, (*v)[0]);
+        const double write_ms = ms_since(t0);
+        if (!quiet)
+            std::printf("raykit render: %ux%u, 1 spp, %s, device %s: %llu rays (primary %llu, shadow %llu, "
+                        "continuation %llu), %u bounces, peak queue %zu rays, %.2f Mrays/s; ms: load %.1f, build %.1f, "
+                        "materials %.1f, upload %.1f, first frame %.1f, frame %.1f, write %.1f\n",
+                        width, height, shader_name(set.shade.shader), dev.info().name.c_str(),
+                        (unsigned long long)st.total(), (unsigned long long)st.primary,
+                        (unsigned long long)st.shadow, (unsigned long long)st.continuation, st.bounces, st.peak_queue,
+                        st.render_ms > 0.0 ? double(st.total()) / (st.render_ms * 1e3) : 0.0, load_ms, rs.build_ms,
+                        rs.materials_ms, upload_ms, first.render_ms, st.render_ms, write_ms);
+        return 0;
+    }
+#endif
 
     // ---- render
     cr::ProgressBar bar;

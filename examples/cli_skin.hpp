@@ -1,6 +1,6 @@
 // examples/cli_skin.hpp — the `raykit skin` command (to be wired into examples/raykit.cpp).
 //
-//   raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu]
+//   raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu|cl]
 //
 // Loads the reference SMD, optionally an animation SMD (retargeted by bone
 // name) and prints the skinned position of every triangle corner: triangles
@@ -10,7 +10,13 @@
 // number, fractional allowed, in [0, frame_count - 1]; between two frames the
 // pose is interpolated (--interp slerp, the default, or euler: the thesis's
 // per-axis shortest-angle lerp). Skinning runs on the CPU through the packed
-// device layout (anim/skinning.hpp). `--device cpu` is accepted and ignored.
+// device layout (anim/skinning.hpp), or with `--device cl` on the OpenCL
+// device as the vertex hook raykit::SkinHook (anim/skin_hook.hpp) of a
+// DeviceScene holding the mesh as its one dynamic object (vertex stage and
+// refit run; the positions are read back): the same lines, the numbers
+// within 1e-5 of the model's extent of the CPU's. `--device cl` needs a
+// build with RAYKIT_CLI_HAVE_CL=1 (else it is a usage error); with no
+// OpenCL device it fails with raykit::cl::NoDeviceError (exit code 1).
 // Loader warnings go to stderr as "raykit: warning: ...".
 //
 // Entry point:
@@ -19,7 +25,7 @@
 //       Throws raykit_cli::SkinUsageError (derived from std::runtime_error)
 //       for bad usage — wrong number of arguments, an unknown option, an
 //       option without its value, --interp other than slerp/euler, --device
-//       other than cpu, FRAME not a finite number >= 0 — which the caller
+//       other than cpu/cl (cl only in OpenCL builds), FRAME not a finite number >= 0 — which the caller
 //       should report with the usage text and exit code 2. Every other
 //       failure throws another std::exception (raykit::ParseError for bad
 //       files, std::runtime_error for FRAME beyond the last frame or an
@@ -42,6 +48,11 @@
 #include "raykit/anim/skeleton.hpp"
 #include "raykit/anim/skinning.hpp"
 #include "raykit/io/smd.hpp"
+#if RAYKIT_CLI_HAVE_CL
+#include "raykit/anim/skin_hook.hpp"
+#include "raykit/cl.hpp"
+#include "raykit/scene/scene.hpp"
+#endif
 
 namespace raykit_cli {
 
@@ -51,13 +62,14 @@ struct SkinUsageError : std::runtime_error {
 };
 
 inline constexpr const char* kSkinUsage =
-    "  raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu]\n";
+    "  raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu|cl]\n";
 
 struct SkinArgs {
     std::string reference;
     std::string animation;  ///< empty: bind pose
     double frame = 0.0;
     raykit::Interpolation interp = raykit::Interpolation::slerp;
+    bool device_cl = false;  ///< --device cl: skin on the OpenCL device
 };
 
 inline SkinArgs parse_skin_args(int argc, char** argv, int first_arg) {
@@ -76,8 +88,16 @@ inline SkinArgs parse_skin_args(int argc, char** argv, int first_arg) {
                 } else {
                     throw SkinUsageError("unknown --interp '" + v + "' (known: slerp, euler)");
                 }
-            } else if (v != "cpu") {
-                throw SkinUsageError("skin runs on the CPU only (--device " + v + ")");
+            } else if (v == "cpu") {
+                a.device_cl = false;
+            } else if (v == "cl") {
+#if RAYKIT_CLI_HAVE_CL
+                a.device_cl = true;
+#else
+                throw SkinUsageError("--device cl: this raykit was built without OpenCL");
+#endif
+            } else {
+                throw SkinUsageError("unknown --device '" + v + "' (known: cpu, cl)");
             }
         } else if (s.size() > 1 && s[0] == '-' && s[1] == '-') {
             throw SkinUsageError("unknown option " + s);
@@ -121,7 +141,22 @@ inline std::string skin_corners_text(const SkinArgs& a, std::vector<std::string>
     }
     const std::vector<raykit::SkinMatrix> mats = raykit::skin_matrices(skeleton, local);
     const raykit::PackedSkin skin = raykit::pack_skin(model.weights, model.bones.size());
-    const std::vector<raykit::vec3> pos = raykit::skin_positions(skin, mats, model.mesh.positions);
+    std::vector<raykit::vec3> pos;
+#if RAYKIT_CLI_HAVE_CL
+    if (a.device_cl) {
+        raykit::Scene scene;
+        const std::uint32_t body = scene.add_object(model.mesh, raykit::ObjectKind::dynamic);
+        scene.add_instance(body);
+        raykit::cl::DeviceScene<raykit::SkinHook> ds(raykit::cl::Device::shared(), scene);
+        raykit::upload_skin(ds, scene, body, skin);
+        raykit::upload_skin_matrices(ds, std::span<const raykit::SkinMatrix>(mats));
+        ds.update();
+        pos = ds.positions(body);
+    } else
+#endif
+    {
+        pos = raykit::skin_positions(skin, mats, model.mesh.positions);
+    }
     std::string out;
     out.reserve(model.mesh.triangles.size() * 3 * 40);
     char line[128];

@@ -4,7 +4,8 @@
 //   raykit trace SCENE.obj RAYS.txt HITS.txt [--any-hit] [--test watertight|mt|thesis] [...]
 //   raykit check SCENE.obj [--rays N] [--seed S] [...]
 //   raykit generate torus|icosphere|soup OUT.obj [--tris N] [--seed S]
-//   raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler]
+//   raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu|cl]
+//   raykit animate REF.smd ANIM.smd OUT_%03d.png [--scene STATIC.obj] [--frames N] [...]
 //   raykit render SCENE.obj OUT.png [...]
 //
 // Every error ends with a one-line reason on stderr and a non-zero exit:
@@ -28,6 +29,7 @@
 #include "raykit/scene/build_options.hpp"
 #include "raykit/scene/generate.hpp"
 
+#include "cli_animate.hpp"
 #include "cli_render.hpp"
 #include "cli_skin.hpp"
 #if RAYKIT_CLI_HAVE_CL
@@ -50,7 +52,9 @@ constexpr const char* kUsage = R"(usage:
   raykit trace SCENE.obj RAYS.txt HITS.txt [--builder NAME] [--any-hit] [--test watertight|mt|thesis] [--threads T] [--device cpu|cl]
   raykit check SCENE.obj [--rays N] [--seed S] [--builder NAME] [--test watertight|mt|thesis] [--threads T]
   raykit generate torus|icosphere|soup OUT.obj [--tris N] [--seed S]
-  raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu]
+  raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu|cl]
+  raykit animate REF.smd ANIM.smd OUT_%03d.png [--scene STATIC.obj] [--frames N] [--fps F] [--device cpu|cl]
+                 ...render flags (raykit animate alone lists all options)
   raykit render SCENE.obj OUT.png [--width W] [--height H] [--spp N] [--max-depth D] [--shader NAME]
                 [--camera EX EY EZ TX TY TZ] [--up UX UY UZ] [--fov DEG] [--light X Y Z R G B]... (raykit render alone lists all options)
 
@@ -410,6 +414,15 @@ int main(int argc, char** argv) {
                 return raykit_cli_render(argc, argv, 2);
             } catch (const RaykitCliRenderUsageError& e) {
                 std::fputs(raykit_cli_render_usage(), stderr);
+                std::fprintf(stderr, "raykit: error: %s\n", e.what());
+                return 2;
+            }
+        }
+        if (cmd == "animate") {
+            try {
+                return raykit_cli_animate(argc, argv, 2);
+            } catch (const RaykitCliAnimateUsageError& e) {
+                std::fputs(raykit_cli_animate_usage(), stderr);
                 std::fprintf(stderr, "raykit: error: %s\n", e.what());
                 return 2;
             }

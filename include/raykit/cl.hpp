@@ -9,6 +9,7 @@
 //   cl/trace.hpp         MeshTracer: closest/any hit of one mesh, camera rays
 //   cl/hook.hpp          vertex hooks (OpenCL C + parameter struct + CPU twin)
 //   cl/refit.hpp         device refit, level-wise and one-pass
+//   cl/render.hpp        wavefront renderer with ray hooks (normals, depth, whitted)
 //   cl/device_scene.hpp  DeviceScene<Hooks...>: two-level scene pipeline
 //
 // Kernel sources are raw strings in kernels/raykit/kernels/ (no files are
@@ -27,4 +28,5 @@
 #include "raykit/cl/trace.hpp"
 #include "raykit/cl/hook.hpp"
 #include "raykit/cl/refit.hpp"
+#include "raykit/cl/render.hpp"
 #include "raykit/cl/device_scene.hpp"

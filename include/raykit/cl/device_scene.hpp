@@ -25,6 +25,8 @@
 //                 transforms (transformed_box), the top-level tree built (or
 //                 refitted) on the host with the Scene's builder settings and
 //                 uploaded with the instance records.
+// Hooks with global buffers (H::buffers, cl/hook.hpp) get them bound after
+// the vertex-stage kernel's own arguments from set_hook_buffer<H>(slot, data).
 // A scene with no dynamic object never launches a vertex or refit kernel;
 // a hook no object uses is not even compiled (the program holds only the
 // used hooks' sources and stages). launches() counts every launch by stage.
@@ -166,6 +168,34 @@ public:
         params_[object].resize(sizeof(params));
         std::memcpy(params_[object].data(), &params, sizeof(params));
     }
+    /// Uploads global buffer `slot` of buffer hook H (see H::buffers in
+    /// cl/hook.hpp): the elements must have the layout of the OpenCL C type
+    /// H::buffers[slot]. Reuses the device allocation when it is large
+    /// enough (no allocation for a per-frame upload of the same size).
+    /// Takes effect from the next update(). Throws std::out_of_range for a
+    /// slot >= the hook's buffer count.
+    template <class H, class T>
+    void set_hook_buffer(std::size_t slot, std::span<const T> data) {
+        static_assert(hook_index<H> < kHooks, "H is not one of this DeviceScene's hooks");
+        static_assert(std::is_trivially_copyable_v<T>, "hook buffers hold trivially copyable types");
+        if (slot >= hook_buffer_count<H>())
+            throw std::out_of_range(std::string("raykit::cl::DeviceScene::set_hook_buffer: hook ") + H::name + " has " +
+                                    std::to_string(hook_buffer_count<H>()) + " buffers, no slot " + std::to_string(slot));
+        HookState& hs = hooks_[hook_index<H>];
+        if (hs.buffers.size() < hook_buffer_count<H>()) {
+            hs.buffers.resize(hook_buffer_count<H>());
+            hs.buffer_set.resize(hook_buffer_count<H>(), false);
+        }
+        const std::span<const std::byte> bytes(reinterpret_cast<const std::byte*>(data.data()), data.size_bytes());
+        hs.buffers[slot].reserve(*dev_, bytes.size(), CL_MEM_READ_ONLY);
+        hs.buffers[slot].write(*dev_, bytes);
+        hs.buffer_set[slot] = true;
+    }
+    template <class H, class T>
+    void set_hook_buffer(std::size_t slot, const std::vector<T>& data) {
+        set_hook_buffer<H, T>(slot, std::span<const T>(data));
+    }
+
     /// Object no longer moved by a hook (it keeps its current vertices).
     void clear_hook(std::uint32_t object) {
         require_dynamic(object, "clear_hook");
@@ -387,6 +417,15 @@ private:
                                                               params.size() * sizeof(typename H::Params)));
             set_args(hs.kernel, rest_, moved_, positions_, hs.begin, hs.rest_offset, hs.pos_offset, hs.params,
                      static_cast<std::uint32_t>(hs.objects.size()), hs.total);
+            if constexpr (hook_buffer_count<H>() > 0) {
+                constexpr cl_uint kFirstBufferArg = 9;  // after `total` (kernels/raykit/kernels/vertex.hpp)
+                for (std::size_t b = 0; b < hook_buffer_count<H>(); ++b) {
+                    if (b >= hs.buffer_set.size() || !hs.buffer_set[b])
+                        throw std::logic_error(std::string("raykit::cl::DeviceScene::update: hook ") + H::name +
+                                               " buffer " + std::to_string(b) + " was never set (set_hook_buffer)");
+                    detail::set_arg(hs.kernel, kFirstBufferArg + static_cast<cl_uint>(b), hs.buffers[b]);
+                }
+            }
             const bool l = launch(dev_->queue(), hs.kernel, hs.total, 64);
             launches_.vertex += l;
             ran = ran || l;
@@ -444,6 +483,8 @@ private:
         std::uint32_t total = 0;
         Buffer<std::uint32_t> begin, rest_offset, pos_offset;
         Buffer<std::byte> params;
+        std::vector<Buffer<std::byte>> buffers;  ///< H::buffers, set by set_hook_buffer
+        std::vector<bool> buffer_set;
         ::cl::Kernel kernel;
     };
 

@@ -23,6 +23,29 @@
 // Compiler messages about the source name "<hook NAME>" and the line within
 // the hook's own text.
 //
+// Global buffers (optional). Params travel by value; a hook that needs
+// arrays (skinning: per-vertex links, per-frame bone matrices) also declares
+//
+//   static constexpr std::array<const char*, N> buffers = {"uint", "ushort2", "float"};
+//
+// the OpenCL C element types (type names, identifiers) of N read-only
+// global buffers. Its function
+// then takes them after the params:
+//   rk_vertex NAME(rk_vertex v, uint index, NAME_params p,
+//                  __global const uint* b0, __global const ushort2* b1, __global const float* b2)
+// (the vertex-stage kernel gets the extra parameters rk_hook_buf0.. and
+// passes them on). The buffers belong to the hook, not to an object: every
+// object the hook moves in one launch sees the same buffers, and its Params
+// say where its own data lies in them (e.g. a first-vertex / first-bone
+// offset). The caller uploads them with
+//   DeviceScene::set_hook_buffer<H>(slot, std::span<const T> data)
+// (slot < N; reuses the device allocation when it is large enough, so a
+// per-frame upload of bone matrices allocates nothing); update() throws
+// std::logic_error if a used hook has a slot never set. A buffer hook's CPU
+// twin may take whatever host data it needs (apply(v, i, p) is then not
+// required; see raykit/anim/skin_hook.hpp for SkinHook). Hooks without
+// `buffers` are unchanged.
+//
 // Hooks are template arguments of raykit::cl::DeviceScene; only hooks that
 // some object of the scene uses are compiled into its program. On the CPU,
 // Scene::move_vertices(object, [&](const Vertex& v, std::uint32_t i) {
@@ -31,7 +54,9 @@
 // device vertices may differ in the last bits unless the hook avoids them.
 #pragma once
 
+#include <array>
 #include <cmath>
+#include <cstddef>
 #include <concepts>
 #include <cstdint>
 #include <stdexcept>
@@ -46,12 +71,24 @@
 
 namespace raykit::cl {
 
+/// Number of global buffers hook H declares (H::buffers; 0 without).
 template <class H>
-concept VertexHook = requires(const Vertex& v, std::uint32_t i, const typename H::Params& p) {
+constexpr std::size_t hook_buffer_count() {
+    if constexpr (requires { H::buffers; })
+        return std::size(H::buffers);
+    else
+        return 0;
+}
+
+template <class H>
+concept VertexHook = requires {
     { H::name } -> std::convertible_to<const char*>;
     { H::source } -> std::convertible_to<const char*>;
-    { H::apply(v, i, p) } -> std::convertible_to<Vertex>;
-} && std::is_trivially_copyable_v<typename H::Params>;
+} && std::is_trivially_copyable_v<typename H::Params> &&
+    (hook_buffer_count<H>() > 0 ||
+     requires(const Vertex& v, std::uint32_t i, const typename H::Params& p) {
+         { H::apply(v, i, p) } -> std::convertible_to<Vertex>;
+     });
 
 /// Throws std::invalid_argument unless `name` is a C identifier.
 inline void check_hook_name(std::string_view name) {
@@ -70,6 +107,21 @@ std::vector<SourcePart> hook_parts() {
     std::string stage = kernels::kVertexStage;
     for (std::size_t at = stage.find("@NAME@"); at != std::string::npos; at = stage.find("@NAME@", at))
         stage.replace(at, 6, name);
+    std::string buf_params, buf_args;
+    if constexpr (hook_buffer_count<H>() > 0) {
+        for (std::size_t b = 0; b < hook_buffer_count<H>(); ++b) {
+            const std::string type = H::buffers[b];
+            check_hook_name(type);  // an OpenCL C type name, e.g. "uint" / "ushort2" / "float"
+            buf_params += ", __global const " + type + "* rk_hook_buf" + std::to_string(b);
+            buf_args += ", rk_hook_buf" + std::to_string(b);
+        }
+    }
+    auto subst = [&](const std::string& key, const std::string& value) {
+        for (std::size_t at = stage.find(key); at != std::string::npos; at = stage.find(key, at + value.size()))
+            stage.replace(at, key.size(), value);
+    };
+    subst("@BUFFER_PARAMS@", buf_params);
+    subst("@BUFFER_ARGS@", buf_args);
     const std::string size = std::to_string(sizeof(typename H::Params));
     std::string check = "typedef char rk_hook_" + name + "_params_must_be_" + size + "_bytes_like_the_Cpp_Params[(sizeof(" +
                         name + "_params) == " + size + ") ? 1 : -1];\n";

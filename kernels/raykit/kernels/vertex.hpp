@@ -9,6 +9,10 @@
 //   moved[rest_offset[r] + i] = @NAME@(rest[rest_offset[r] + i], i, params[r])
 // and its position also goes to the scene's position array (read by trace
 // and refit) at vertex pos_offset[r] + i.
+// @BUFFER_PARAMS@ / @BUFFER_ARGS@ become the hook's global buffers (see
+// H::buffers in include/raykit/cl/hook.hpp): extra kernel parameters
+// ", __global const T0* rk_hook_buf0, ..." passed on to the hook function;
+// both are empty for a hook without buffers.
 #pragma once
 
 namespace raykit::kernels {
@@ -17,7 +21,7 @@ inline constexpr const char* kVertexStage = R"CLC(
 __kernel void rk_vertex_stage_@NAME@(__global const rk_vertex* rest, __global rk_vertex* moved, __global float* pos,
                                      __global const uint* begin, __global const uint* rest_offset,
                                      __global const uint* pos_offset, __global const @NAME@_params* params,
-                                     const uint ranges, const uint total) {
+                                     const uint ranges, const uint total@BUFFER_PARAMS@) {
     const uint i = (uint)get_global_id(0);
     if (i >= total) return;
     /* the range r with begin[r] <= i < begin[r+1]: a binary search with the
@@ -27,7 +31,7 @@ __kernel void rk_vertex_stage_@NAME@(__global const rk_vertex* rest, __global rk
         if (lo + step < ranges && begin[lo + step] <= i) lo += step;
     const uint k = i - begin[lo]; /* vertex index within its object */
     const @NAME@_params p = params[lo];
-    const rk_vertex w = @NAME@(rest[rest_offset[lo] + k], k, p);
+    const rk_vertex w = @NAME@(rest[rest_offset[lo] + k], k, p@BUFFER_ARGS@);
     moved[rest_offset[lo] + k] = w;
     vstore3((float3)(w.position[0], w.position[1], w.position[2]), pos_offset[lo] + k, pos);
 }

@@ -1,0 +1,547 @@
+// examples/cli_animate.hpp — the `raykit animate` command: a skinned SMD
+// character rendered frame by frame, alone or inside a static OBJ scene.
+//
+//   raykit animate REF.smd ANIM.smd OUT_%03d.png [--scene STATIC.obj] [--frames N] [--first F]
+//                  [--fps F] [--device cpu|cl] [--width W] [--height H] [--spp N]
+//                  [--camera EX EY EZ TX TY TZ] [--fov DEG] [--light X Y Z R G B]
+//                  [--place X Z] [--char-height H] [--yaw DEG] [--threads T] [--max-depth D]
+//
+// Frame k (k = 0 .. N-1) shows the animation at time (first + k) / fps seconds,
+// i.e. animation frame (first + k) · anim_fps / fps (slerp between frames,
+// looping); defaults: every frame of ANIM once (N = frame count) at the
+// animation's own rate. OUT must contain one printf integer conversion (%d,
+// %03d, ...) for the frame number k; an OUT without one writes every frame
+// to the same file.
+//
+// Placement. SMD models are Z-up in their own units (the HL2 goblin is ~17
+// units tall); OBJ scenes are Y-up. The character is turned Z-up -> Y-up,
+// turned by --yaw about the vertical (default -50°: SMD characters face +x;
+// this turns them towards the default camera), scaled to --char-height (default 1.8;
+// the thesis scene's houses are ~6-10 units tall) and stood with its bind
+// pose's feet on the first surface below (X, top of scene, Z) (--place,
+// default: the scene's centre, or the origin without --scene). The placement
+// is folded into the bone matrices (world = P · M_bone), so skinning emits
+// world-space vertices and the refitted boxes are world boxes; nothing else
+// is transformed per frame. The camera (no --camera) frames the character's
+// bind-pose box from the front-right-above at ~3x its size and stays fixed;
+// the default light is default_key_light of that camera.
+//
+// Per frame (all timings wall-clock ms, printed as one table row on stdout):
+//   interpolate  sample_frame (slerp) + skin_matrices (+ the placement)
+//   skin         CPU: skin_vertices into the render mesh (positions, normals);
+//                cl:  matrices upload + the SkinHook vertex stage of a
+//                     raykit::cl::DeviceScene<SkinHook> (anim/skin_hook.hpp)
+//   refit        CPU: raykit::refit of the character's tree (or its rebuild);
+//                cl:  the device's one-pass refit of the character's tree
+//   top          the render tree: root over (static tree, character tree);
+//                the static tree's nodes are written once and never again.
+//                cl: + the device top level and the read-back of the
+//                character's skinned vertices and refitted nodes
+//   trace/shade  render_cpu (CPU renderer): its render wall time split in
+//                the ratio of its trace+shadow vs shade thread times
+//   sah          SAH(character tree) / SAH(after the last (re)build), and
+//                the RebuildPolicy decision (threshold 1.15): "refit" or
+//                "rebuild". On the CPU a rebuild is done (binned SAH from the
+//                current vertices). With --device cl the device keeps the
+//                topology it was given (DeviceScene cannot rebuild a
+//                dynamic tree), so the decision is printed as "rebuild*"
+//                (advised, not done) and the tree keeps being refitted.
+// With --device cl the static scene is a static object of the DeviceScene
+// (uploaded once, never written again); the frame is rendered by the CPU
+// renderer from the device-skinned vertices and device-refitted nodes read
+// back.
+//
+// Entry point:
+//   int raykit_cli_animate(int argc, char** argv, int first_arg);
+//       argv[first_arg] is the first argument after `animate`. Returns 0.
+//       Throws RaykitCliAnimateUsageError (a std::invalid_argument) for bad
+//       usage (the caller prints raykit_cli_animate_usage(), exit code 2),
+//       other std::exceptions for failures (exit code 1).
+//   const char* raykit_cli_animate_usage();
+//   raykit_cli::AnimateArgs raykit_cli::parse_animate_args(int argc, char** argv, int first_arg);
+#pragma once
+
+#include <algorithm>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "raykit.hpp"
+#include "raykit/anim/interpolate.hpp"
+#include "raykit/anim/skeleton.hpp"
+#include "raykit/anim/skinning.hpp"
+#include "raykit/bvh/rebuild_policy.hpp"
+#include "raykit/bvh/refit.hpp"
+#include "raykit/bvh/sah.hpp"
+#include "raykit/io/obj.hpp"
+#include "raykit/io/smd.hpp"
+#include "raykit/render/image.hpp"
+#include "raykit/render/render_cpu.hpp"
+#include "raykit/scene/build_options.hpp"
+#include "raykit/scene/scene.hpp"
+#if RAYKIT_CLI_HAVE_CL
+#include "raykit/anim/skin_hook.hpp"
+#include "raykit/cl.hpp"
+#endif
+
+/// Bad command-line usage of `raykit animate` (exit code 2).
+struct RaykitCliAnimateUsageError : std::invalid_argument {
+    using std::invalid_argument::invalid_argument;
+};
+
+inline const char* raykit_cli_animate_usage() {
+    return R"(usage:
+  raykit animate REF.smd ANIM.smd OUT_%03d.png [options]
+
+  --scene STATIC.obj        render the character inside this static scene
+  --frames N                frames to render (default: every frame of ANIM)
+  --first F                 first frame number (default 0)
+  --fps F                   output frame rate (default: the animation's)
+  --device cpu|cl           where skinning + refit run (default cpu)
+  --width W  --height H     image size (default 640 x 480)
+  --spp N                   samples per pixel (default 1)
+  --max-depth D             reflection/refraction bounces (default 2)
+  --camera EX EY EZ TX TY TZ  eye and target (default: frame the character)
+  --fov DEG                 vertical field of view (default 45)
+  --light X Y Z R G B       point light (repeatable; default: a key light)
+  --place X Z               where the character stands (default: scene centre)
+  --char-height H           character height in scene units (default 1.8)
+  --yaw DEG                 turn the character about the vertical (default -50: facing the default camera)
+  --threads T               worker threads, 0 = all (default 0)
+)";
+}
+
+namespace raykit_cli {
+
+struct AnimateArgs {
+    std::string reference, animation, output, scene;
+    long frames = -1;  ///< -1: every frame
+    long first = 0;
+    double fps = 0.0;  ///< 0: the animation's
+    bool device_cl = false;
+    std::uint32_t width = 640, height = 480;
+    unsigned spp = 1, threads = 0, max_depth = 2;
+    std::optional<std::pair<raykit::vec3, raykit::vec3>> camera;
+    float fov = 45.0f;
+    std::vector<raykit::Light> lights;
+    std::optional<std::pair<float, float>> place;
+    float char_height = 1.8f;
+    float yaw = -50.0f;  ///< faces the default camera
+};
+
+namespace detail_animate {
+
+inline double number(const std::string& opt, const char* s) {
+    const std::string v = s;
+    double d = 0.0;
+    const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), d);
+    if (ec != std::errc() || p != v.data() + v.size() || !std::isfinite(d))
+        throw RaykitCliAnimateUsageError(opt + " expects a number, got '" + v + "'");
+    return d;
+}
+
+}  // namespace detail_animate
+
+inline AnimateArgs parse_animate_args(int argc, char** argv, int first_arg) {
+    using detail_animate::number;
+    AnimateArgs a;
+    std::vector<std::string> pos;
+    auto need = [&](int i, int n, const std::string& opt) {
+        if (i + n >= argc) throw RaykitCliAnimateUsageError(opt + " needs " + std::to_string(n) + " value(s)");
+    };
+    auto count = [&](const std::string& opt, double v, double lo) {
+        if (v < lo || v != std::floor(v) || v > 1e9)
+            throw RaykitCliAnimateUsageError(opt + " must be an integer >= " + std::to_string(int(lo)));
+        return v;
+    };
+    for (int i = first_arg; i < argc; ++i) {
+        const std::string s = argv[i];
+        if (s == "--scene") {
+            need(i, 1, s);
+            a.scene = argv[++i];
+        } else if (s == "--device") {
+            need(i, 1, s);
+            const std::string v = argv[++i];
+            if (v == "cpu") {
+                a.device_cl = false;
+            } else if (v == "cl") {
+#if RAYKIT_CLI_HAVE_CL
+                a.device_cl = true;
+#else
+                throw RaykitCliAnimateUsageError("--device cl: this raykit was built without OpenCL");
+#endif
+            } else {
+                throw RaykitCliAnimateUsageError("--device must be cpu or cl");
+            }
+        } else if (s == "--frames" || s == "--first" || s == "--width" || s == "--height" || s == "--spp" ||
+                   s == "--threads" || s == "--max-depth") {
+            need(i, 1, s);
+            const double lo = (s == "--first" || s == "--threads" || s == "--max-depth") ? 0.0 : 1.0;
+            const double v = count(s, number(s, argv[++i]), lo);
+            if (s == "--frames") a.frames = long(v);
+            else if (s == "--first") a.first = long(v);
+            else if (s == "--width") a.width = std::uint32_t(v);
+            else if (s == "--height") a.height = std::uint32_t(v);
+            else if (s == "--spp") a.spp = unsigned(v);
+            else if (s == "--threads") a.threads = unsigned(v);
+            else a.max_depth = unsigned(v);
+        } else if (s == "--fps" || s == "--fov" || s == "--char-height" || s == "--yaw") {
+            need(i, 1, s);
+            const double v = number(s, argv[++i]);
+            if (s == "--fps") {
+                if (!(v > 0.0)) throw RaykitCliAnimateUsageError("--fps must be > 0");
+                a.fps = v;
+            } else if (s == "--fov") {
+                if (!(v > 0.0 && v < 180.0)) throw RaykitCliAnimateUsageError("--fov must be in (0, 180)");
+                a.fov = float(v);
+            } else if (s == "--char-height") {
+                if (!(v > 0.0)) throw RaykitCliAnimateUsageError("--char-height must be > 0");
+                a.char_height = float(v);
+            } else {
+                a.yaw = float(v);
+            }
+        } else if (s == "--camera") {
+            need(i, 6, s);
+            float v[6];
+            for (float& x : v) x = float(number(s, argv[++i]));
+            a.camera = {{v[0], v[1], v[2]}, {v[3], v[4], v[5]}};
+        } else if (s == "--light") {
+            need(i, 6, s);
+            float v[6];
+            for (float& x : v) x = float(number(s, argv[++i]));
+            a.lights.push_back(raykit::Light::point({v[0], v[1], v[2]}, {v[3], v[4], v[5]}));
+        } else if (s == "--place") {
+            need(i, 2, s);
+            const float x = float(number(s, argv[++i]));
+            const float z = float(number(s, argv[++i]));
+            a.place = {{x, z}};
+        } else if (s.size() > 1 && s[0] == '-' && s[1] == '-') {
+            throw RaykitCliAnimateUsageError("unknown option " + s);
+        } else {
+            pos.push_back(s);
+        }
+    }
+    if (pos.size() != 3) throw RaykitCliAnimateUsageError("animate takes REF.smd ANIM.smd OUT_%03d.png");
+    a.reference = pos[0];
+    a.animation = pos[1];
+    a.output = pos[2];
+    return a;
+}
+
+/// OUT with its one integer conversion filled in with k (or OUT as is).
+inline std::string animate_frame_name(const std::string& pattern, long k) {
+    const std::size_t at = pattern.find('%');
+    if (at == std::string::npos) return pattern;
+    std::size_t e = at + 1;
+    while (e < pattern.size() && (std::isdigit(static_cast<unsigned char>(pattern[e])) || pattern[e] == '0')) ++e;
+    if (e >= pattern.size() || pattern[e] != 'd')
+        throw RaykitCliAnimateUsageError("OUT: only an integer conversion (%d, %03d, ...) is allowed");
+    char buf[64];
+    std::snprintf(buf, sizeof buf, ("%" + pattern.substr(at + 1, e - at - 1) + "ld").c_str(), k);
+    return pattern.substr(0, at) + buf + pattern.substr(e + 1);
+}
+
+namespace detail_animate {
+
+/// world = P · M for a row-major 3x4 M (P affine).
+inline raykit::SkinMatrix place_matrix(const raykit::mat4& P, const raykit::SkinMatrix& M) {
+    raykit::SkinMatrix o;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) {
+            float v = c == 3 ? P[3][r] : 0.0f;
+            for (int k = 0; k < 3; ++k) v += P[k][r] * M.m[4 * k + c];
+            o.m[4 * r + c] = v;
+        }
+    return o;
+}
+
+/// Render tree over the concatenated mesh [static triangles | character
+/// triangles]: root 0 with children 1 (static root) and 2 (character root);
+/// static nodes 1.. at 3.., character nodes 1.. after them. Children stay at
+/// odd indices (pairs share a cache line) since a binary tree has an odd
+/// node count.
+struct CombinedTree {
+    raykit::Bvh bvh;
+    std::size_t static_nodes = 0;      ///< nodes of the static tree
+    std::uint32_t static_tris = 0;
+    std::uint32_t static_slots = 0;    ///< prim_ids entries of the static tree
+
+    void set_static(const raykit::Bvh& s, std::uint32_t tris) {
+        static_nodes = s.nodes.size();
+        static_tris = tris;
+        static_slots = static_cast<std::uint32_t>(s.prim_ids.size());
+        bvh.nodes.assign(static_nodes == 0 ? 1 : static_nodes + 2, raykit::Node{});
+        bvh.prim_ids.assign(s.prim_ids.begin(), s.prim_ids.end());
+        for (std::size_t j = 0; j < static_nodes; ++j) {
+            raykit::Node n = s.nodes[j];
+            if (!n.is_leaf()) n.index += 2;
+            bvh.nodes[j == 0 ? 1 : j + 2] = n;
+        }
+    }
+    /// Writes the character's tree (nodes always; prim_ids when `topology`).
+    void set_character(std::span<const raykit::Node> c, std::span<const std::uint32_t> prims, bool topology) {
+        if (static_nodes == 0) {  // no static scene: the character's tree is the render tree
+            bvh.nodes.assign(c.begin(), c.end());
+            if (topology) bvh.prim_ids.assign(prims.begin(), prims.end());
+            return;
+        }
+        const std::size_t base = static_nodes + 2;
+        if (topology) {
+            bvh.nodes.resize(base + (c.empty() ? 0 : c.size() - 1));
+            bvh.prim_ids.resize(static_slots);
+            for (std::uint32_t p : prims) bvh.prim_ids.push_back(p + static_tris);
+        }
+        const std::uint32_t shift = static_cast<std::uint32_t>(static_nodes) + 1;
+        for (std::size_t j = 0; j < c.size(); ++j) {
+            raykit::Node n = c[j];
+            n.index += n.is_leaf() ? static_slots : shift;
+            bvh.nodes[j == 0 ? 2 : j + static_nodes + 1] = n;
+        }
+        raykit::Node& root = bvh.nodes[0];
+        root.box = bvh.nodes[1].box;
+        root.box.grow(bvh.nodes[2].box);
+        root.index = 1;
+        root.count = 0;
+    }
+};
+
+}  // namespace detail_animate
+}  // namespace raykit_cli
+
+inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
+    using namespace raykit;
+    using clock = std::chrono::steady_clock;
+    auto ms = [](clock::time_point a) { return std::chrono::duration<double, std::milli>(clock::now() - a).count(); };
+    const raykit_cli::AnimateArgs a = raykit_cli::parse_animate_args(argc, argv, first_arg);
+    (void)raykit_cli::animate_frame_name(a.output, 0);  // checks the pattern
+
+    const SmdModel model = load_smd_reference(a.reference);
+    const SmdSkeletonAnim anim = load_smd_animation(a.animation, model);
+    for (const std::string& w : model.mesh.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
+    for (const std::string& w : anim.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
+    if (anim.frame_count() == 0) throw std::runtime_error(a.animation + ": no frames");
+    const Skeleton skeleton(model);
+    const PackedSkin skin = pack_skin(model.weights, model.bones.size());
+    const Mesh& cm = model.mesh;
+    const std::size_t nv = cm.positions.size();
+
+    // Static scene: one object of a two-object raykit::Scene (its BVH is the render tree's left half).
+    Scene scene;
+    Mesh static_mesh;
+    if (!a.scene.empty()) {
+        static_mesh = load_obj(a.scene);
+        for (const std::string& w : static_mesh.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
+    }
+    const std::uint32_t stat = static_mesh.triangles.empty() ? kInvalidIndex : scene.add_object(static_mesh);
+    const std::uint32_t body = scene.add_object(cm, ObjectKind::dynamic);
+    if (stat != kInvalidIndex) scene.add_instance(stat);
+    scene.add_instance(body);
+
+    // Placement P: Z-up -> Y-up, yaw, scale to char_height, feet on the ground at (X, Z).
+    AABB rest_box;
+    for (const vec3& p : cm.positions) rest_box.grow(p);
+    const float model_height = rest_box.max.z - rest_box.min.z;
+    if (!(model_height > 0.0f)) throw std::runtime_error(a.reference + ": the model has no height");
+    const float s = a.char_height / model_height;
+    AABB static_box;
+    for (const vec3& p : static_mesh.positions) static_box.grow(p);
+    float px = 0.0f, pz = 0.0f, ground = 0.0f;
+    if (a.place) {
+        px = a.place->first;
+        pz = a.place->second;
+    } else if (stat != kInvalidIndex) {
+        px = 0.5f * (static_box.min.x + static_box.max.x);
+        pz = 0.5f * (static_box.min.z + static_box.max.z);
+    }
+    if (stat != kInvalidIndex) {
+        Ray down;
+        down.org = vec3(px, static_box.max.y + 1.0f, pz);
+        down.dir = vec3(0.0f, -1.0f, 0.0f);
+        const Hit h = intersect_closest(scene.objects()[stat].mesh, scene.objects()[stat].bvh, down);
+        ground = h.valid() ? down.org.y - h.t : static_box.min.y;
+    }
+    mat4 P = glm::translate(mat4(1.0f), vec3(px, ground - rest_box.min.z * s, pz));
+    P = glm::rotate(P, glm::radians(a.yaw), vec3(0.0f, 1.0f, 0.0f));
+    P = glm::scale(P, vec3(s));
+    P = glm::rotate(P, glm::radians(-90.0f), vec3(1.0f, 0.0f, 0.0f));  // SMD z-up -> y-up
+
+    // Render mesh: static triangles first, then the character's (world-space vertices rewritten per frame).
+    Mesh rm = static_mesh;
+    const std::size_t v0 = rm.positions.size();
+    const auto t0 = static_cast<std::uint32_t>(rm.triangles.size());
+    const auto m0 = static_cast<std::uint32_t>(rm.materials.size());
+    const bool had_normals = !rm.normals.empty() || v0 == 0;
+    if (!had_normals) rm.normals.assign(v0, vec3(0.0f));
+    if (rm.texcoords.empty() && !cm.texcoords.empty()) rm.texcoords.assign(v0, vec2(0.0f));
+    rm.positions.resize(v0 + nv);
+    rm.normals.resize(v0 + nv, vec3(0.0f));
+    if (!rm.texcoords.empty()) {
+        for (std::size_t i = 0; i < nv; ++i) rm.texcoords.push_back(cm.texcoords.empty() ? vec2(0.0f) : cm.texcoords[i]);
+    }
+    for (const Triangle& t : cm.triangles) {
+        Triangle u = t;
+        for (auto& v : u.v) v += static_cast<std::uint32_t>(v0);
+        rm.triangles.push_back(u);
+    }
+    rm.material_ids.resize(t0, kNoMaterial);
+    for (std::size_t t = 0; t < cm.triangles.size(); ++t) {
+        const std::uint32_t id = t < cm.material_ids.size() ? cm.material_ids[t] : kNoMaterial;
+        rm.material_ids.push_back(id == kNoMaterial ? kNoMaterial : id + m0);
+    }
+    rm.materials.insert(rm.materials.end(), cm.materials.begin(), cm.materials.end());
+    const MaterialTable materials = make_material_table(rm, nullptr, a.threads);
+    for (const std::string& w : materials.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
+
+    raykit_cli::detail_animate::CombinedTree tree;
+    if (stat != kInvalidIndex) tree.set_static(scene.objects()[stat].bvh, t0);
+
+    const double fps = a.fps > 0.0 ? a.fps : double(anim.fps > 0.0f ? anim.fps : 30.0f);
+    const long frames = a.frames >= 0 ? a.frames : long(anim.frame_count());
+    auto matrices_at = [&](long k, double* anim_frame) {
+        const double f = double(a.first + k) * double(anim.fps > 0.0f ? anim.fps : 30.0f) / fps;
+        *anim_frame = f;
+        const std::vector<BoneTransform> local = sample_frame(anim, f, Interpolation::slerp, WrapMode::loop);
+        std::vector<SkinMatrix> m = skin_matrices(skeleton, local);
+        for (SkinMatrix& x : m) x = raykit_cli::detail_animate::place_matrix(P, x);
+        return m;
+    };
+
+    // Camera: frames the placed bind pose (~3x its size), fixed for all frames.
+    Camera cam;
+    cam.width = a.width;
+    cam.height = a.height;
+    cam.vfov_degrees = a.fov;
+    if (a.camera) {
+        cam.position = a.camera->first;
+        cam.target = a.camera->second;
+    } else {
+        AABB cb;
+        for (const vec3& p : cm.positions) cb.grow(vec3(P * glm::vec4(p, 1.0f)));
+        const vec3 c = 0.5f * (cb.min + cb.max), h = 1.5f * (cb.max - cb.min);
+        AABB wide;
+        wide.grow(c - h);
+        wide.grow(c + h);
+        cam = frame_scene(wide, a.width, a.height, a.fov, vec3(0.8f, 0.35f, 1.0f));
+    }
+    std::vector<Light> lights = a.lights;
+    if (lights.empty()) lights.push_back(default_key_light(cam));
+    RenderSettings set;
+    set.spp = a.spp;
+    set.threads = a.threads;
+    set.shade.max_depth = a.max_depth;
+    set.time_stages = true;
+
+#if RAYKIT_CLI_HAVE_CL
+    std::optional<raykit::cl::DeviceScene<SkinHook>> ds;
+    if (a.device_cl) {
+        ds.emplace(raykit::cl::Device::shared(), scene);
+        upload_skin(*ds, scene, body, skin);
+    }
+#endif
+    const bool on_device = a.device_cl;
+    RebuildPolicy policy;
+    Bvh char_bvh;  // CPU path: the character's tree over its world-space vertices
+    std::printf("device: %s   static triangles: %u   character: %zu vertices, %zu triangles, %zu bones\n",
+                on_device ? "cl (skin + refit on the device, render on the CPU)" : "cpu", t0, nv,
+                cm.triangles.size(), model.bones.size());
+    std::printf("%6s %8s %8s %8s %8s %8s %8s %8s %7s  %s\n", "frame", "anim_f", "interp", "skin", "refit", "top",
+                "trace", "shade", "sah", "decision");
+    double sum[6] = {0, 0, 0, 0, 0, 0};
+    std::vector<AABB> boxes(cm.triangles.size());
+    for (long k = 0; k < frames; ++k) {
+        double af = 0.0;
+        auto t = clock::now();
+        const std::vector<SkinMatrix> mats = matrices_at(k, &af);
+        const double interp_ms = ms(t);
+        double skin_ms = 0.0, refit_ms = 0.0, top_ms = 0.0, growth = 1.0;
+        const char* decision = "refit";
+        const std::span<vec3> wpos(rm.positions.data() + v0, nv), wnor(rm.normals.data() + v0, nv);
+        if (!on_device) {
+            t = clock::now();
+            skin_vertices(skin, mats, cm.positions, cm.normals, wpos,
+                          cm.normals.empty() ? std::span<vec3>() : wnor, a.threads);
+            skin_ms = ms(t);
+            t = clock::now();
+            auto tri_box = [&](std::uint32_t i) {
+                AABB b;
+                for (int c = 0; c < 3; ++c) b.grow(wpos[cm.triangles[i].v[c]]);
+                return b;
+            };
+            bool topology = false;
+            if (char_bvh.nodes.empty()) {
+                char_bvh = build_bvh(MeshView(std::span<const vec3>(wpos), cm.triangles), BuildOptions{});
+                policy.reset(sah_cost(char_bvh));
+                decision = "build";
+                topology = true;
+            } else {
+                refit(char_bvh, tri_box);
+                growth = policy.growth(sah_cost(char_bvh));
+                if (policy.should_rebuild(sah_cost(char_bvh))) {
+                    char_bvh = build_bvh(MeshView(std::span<const vec3>(wpos), cm.triangles), BuildOptions{});
+                    policy.reset(sah_cost(char_bvh));
+                    decision = "rebuild";
+                    topology = true;
+                }
+            }
+            refit_ms = ms(t);
+            t = clock::now();
+            tree.set_character(char_bvh.nodes, char_bvh.prim_ids, topology);
+            top_ms = ms(t);
+        }
+#if RAYKIT_CLI_HAVE_CL
+        else {
+            t = clock::now();
+            upload_skin_matrices(*ds, std::span<const SkinMatrix>(mats));
+            const raykit::cl::FrameTimes ft = ds->update();
+            skin_ms = ms(t) - ft.refit_ms - ft.top_level_ms;
+            refit_ms = ft.refit_ms;
+            t = clock::now();
+            const std::vector<Vertex> moved = ds->moved_vertices(body);
+            for (std::size_t i = 0; i < nv; ++i) {
+                wpos[i] = moved[i].position;
+                wnor[i] = moved[i].normal;
+            }
+            const std::vector<Node> nodes = ds->nodes(body);
+            Bvh& cb = char_bvh;
+            const bool topology = cb.nodes.empty();
+            cb.nodes.assign(nodes.begin(), nodes.end());
+            if (topology) {
+                cb.prim_ids = scene.objects()[body].bvh.prim_ids;
+                policy.reset(sah_cost(cb));
+                decision = "build";
+            } else {
+                growth = policy.growth(sah_cost(cb));
+                if (policy.should_rebuild(sah_cost(cb))) decision = "rebuild*";
+            }
+            tree.set_character(cb.nodes, cb.prim_ids, topology);
+            top_ms = ft.top_level_ms + ms(t);
+        }
+#endif
+        const ShadeScene view = make_shade_scene(rm, tree.bvh, materials, lights);
+        RenderStats st;
+        const Image img = render_cpu(view, cam, set, &st);
+        const double thread_all = st.trace_thread_ms + st.shadow_thread_ms + st.shade_thread_ms;
+        const double trace_share = thread_all > 0.0 ? (st.trace_thread_ms + st.shadow_thread_ms) / thread_all : 1.0;
+        const double trace_ms = st.render_ms * trace_share, shade_ms = st.render_ms - trace_ms;
+        write_png(img, raykit_cli::animate_frame_name(a.output, a.first + k));
+        std::printf("%6ld %8.2f %8.3f %8.3f %8.3f %8.3f %8.2f %8.2f %7.3f  %s\n", a.first + k, af, interp_ms, skin_ms,
+                    refit_ms, top_ms, trace_ms, shade_ms, growth, decision);
+        std::fflush(stdout);
+        const double row[6] = {interp_ms, skin_ms, refit_ms, top_ms, trace_ms, shade_ms};
+        for (int i = 0; i < 6; ++i) sum[i] += row[i];
+    }
+    if (frames > 0) {
+        std::printf("%6s %8s %8.3f %8.3f %8.3f %8.3f %8.2f %8.2f   (mean ms over %ld frames)\n", "mean", "", sum[0] / frames,
+                    sum[1] / frames, sum[2] / frames, sum[3] / frames, sum[4] / frames, sum[5] / frames, frames);
+    }
+    return 0;
+}

@@ -1,0 +1,471 @@
+// raykit/cl/render.hpp — the wavefront renderer on an OpenCL device, with ray hooks.
+//
+// Interface
+// ---------
+//   raykit::cl::DeviceRenderer r(raykit::cl::Device::shared(), rs.view());   // uploads mesh, tree,
+//                                                                           // materials, textures, lights
+//   Image img = r.render(cam, shade_settings);                 // built-in shader by ShadeSettings::shader
+//   Image img = r.render_hook<MyHook>(cam, shade_settings, params);   // a user ray hook
+//   r.set_lights(lights);                                      // replaces the lights
+//
+// One sample per pixel through the pixel centre: the image equals render_cpu with spp = 1 and
+// jitter = false (same camera rays bit for bit, same triangle test, same shading formulas; the
+// colours differ only in the last bits: float atomics add in any order, OpenCL's pow/normalize
+// are not correctly rounded). Built-in shaders: normals, depth, whitted (ShaderKind); ao and
+// debug_cost throw std::invalid_argument. Alpha cut-outs (map_Kd alpha < 0.5) are skipped inside
+// the closest-hit and shadow traversals as on the CPU, when the scene has any (a separate
+// traversal, so scenes without them pay nothing). Not on the device yet: spp > 1.
+//
+// Ray hooks
+// ---------
+// A ray hook is a C++ type carrying OpenCL C source, like the vertex hooks of cl/hook.hpp:
+//
+//   struct TintHook {
+//       static constexpr const char* name = "tint";          // a C identifier
+//       struct Params { float r, g, b; };                    // trivially copyable
+//       static constexpr unsigned max_rays = 1;              // continuation rays per hit, at most
+//       static constexpr unsigned max_shadow_rays = 0;       // shadow rays per hit (kPerLight: one per light)
+//       static constexpr const char* source = R"(
+//           typedef struct { float r, g, b; } tint_params;
+//           void tint(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit,
+//                     const rk_surface* s, tint_params p) { ... }
+//       )";
+//   };
+//
+// The hook is called once per traced ray (hit or miss) of every bounce; the API it may call
+// (rk_add_color, rk_set_alpha, rk_emit_shadow, rk_emit_ray, rk_get_material,
+// rk_texture_sample, rk_offset_origin, lights) is documented in kernels/raykit/kernels/shade.hpp.
+// NAME_params must have the size of Params (checked when compiling: a mismatch is a build error
+// naming the hook). Only hooks that are rendered with are compiled, each into its own program
+// (cached per process, see cl/program.hpp); compiler messages about the hook name
+// "<hook NAME>" and the line within the hook's own source, and a failed build throws
+// BuildError carrying that log.
+//
+// Wavefront and memory
+// --------------------
+// Rays live in per-bounce queues on the device: queue 0 holds the W·H camera rays; the shade
+// launch of bounce k writes the continuation rays of bounce k + 1 and this bounce's shadow rays
+// into slots taken by atomic_inc on a counter. Before each shade launch the host grows the next
+// queue to (rays of bounce k) × max_rays and the shadow queue to (rays of bounce k) ×
+// max_shadow_rays (buffers only grow, they are kept between frames), so memory follows the rays
+// alive, never pixels × a fixed maximum. A path ends when its hook emits nothing or at
+// ShadeSettings::max_depth (rk_emit_ray refuses beyond it); the frame ends when a queue is
+// empty. The only host round trip per bounce is reading the two counters.
+//
+// Pixels are accumulated in a float RGBA buffer with an atomic_cmpxchg loop on the bits of each
+// float (OpenCL 1.2 has no atomic float add; several rays of one pixel can be in flight).
+//
+// Textures: all map_Kd textures are concatenated into one buffer of RGBA bytes (uchar4 texels)
+// with a table of (offset, width, height, srgb) per texture; the sampling code is the twin of
+// raykit::Texture::sample (wrap, bilinear or nearest, sRGB decoded per texel through the CPU's
+// 256-entry table before filtering). Buffers rather than image objects: one code path for
+// textures of any size and count (no per-device image size or count limits, no sampler
+// rounding differences against the CPU), and it works the same on every OpenCL 1.2 device.
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <concepts>
+#include <cstdint>
+#include <map>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include "raykit/cl/buffer.hpp"
+#include "raykit/cl/layout.hpp"
+#include "raykit/cl/program.hpp"
+#include "raykit/cl/trace.hpp"
+#include "raykit/kernels/camera.hpp"
+#include "raykit/kernels/shade.hpp"
+#include "raykit/kernels/trace.hpp"
+#include "raykit/render/image.hpp"
+#include "raykit/render/shade.hpp"
+#include "raykit/scene/camera.hpp"
+
+namespace raykit::cl {
+
+/// max_shadow_rays value meaning "one per light of the scene".
+inline constexpr unsigned kPerLight = 0xFFFFFFFFu;
+
+template <class H>
+concept RayHook = requires {
+    { H::name } -> std::convertible_to<const char*>;
+    { H::source } -> std::convertible_to<const char*>;
+    { H::max_rays } -> std::convertible_to<unsigned>;
+    { H::max_shadow_rays } -> std::convertible_to<unsigned>;
+} && std::is_trivially_copyable_v<typename H::Params>;
+
+// ---------------------------------------------------------------- crossing structs (kernels/raykit/kernels/shade.hpp)
+
+struct PathRay {
+    Ray ray;
+    float weight[3];
+    std::uint32_t pixel, depth, kind, pad0, pad1;
+};
+static_assert(sizeof(PathRay) == 64);
+
+struct ShadowRay {
+    Ray ray;
+    float color[3];
+    std::uint32_t pixel;
+};
+static_assert(sizeof(ShadowRay) == 48);
+
+struct MaterialRecord {
+    float kd[3], ks[3], ke[3], mirror[3];
+    float ns, ni, transparency;
+    std::int32_t texture, fresnel_mirror, alpha_tested, illum, pad;
+};
+static_assert(sizeof(MaterialRecord) == 80);
+
+struct TextureRecord {
+    std::uint32_t offset, width, height, srgb;
+};
+
+struct LightRecord {
+    float position[3];
+    std::uint32_t type;
+    float direction[3];
+    float pad0;
+    float color[3];
+    float pad1;
+};
+static_assert(sizeof(LightRecord) == 48);
+
+struct RenderSettingsRecord {
+    float ambient[3], background[3];
+    float min_weight, depth_far;
+    std::uint32_t width, height, max_depth, shadows, filter, light_count, has_normals, has_texcoords;
+    std::uint32_t material_id_count, material_count, alpha_testing, pad1;
+};
+static_assert(sizeof(RenderSettingsRecord) == 80);
+
+// ---------------------------------------------------------------- built-in hooks
+
+/// 0.5 · N + 0.5 at the first hit (ShaderKind::normals).
+struct NormalsRayHook {
+    static constexpr const char* name = "rk_normals";
+    struct Params {
+        float pad = 0.0f;
+    };
+    static constexpr unsigned max_rays = 0;
+    static constexpr unsigned max_shadow_rays = 0;
+    static constexpr const char* source = kernels::kShadeNormals;
+};
+/// 1 - distance / far at the first hit (ShaderKind::depth).
+struct DepthRayHook {
+    static constexpr const char* name = "rk_depth";
+    struct Params {
+        float pad = 0.0f;
+    };
+    static constexpr unsigned max_rays = 0;
+    static constexpr unsigned max_shadow_rays = 0;
+    static constexpr const char* source = kernels::kShadeDepth;
+};
+/// Whitted ray tracing (ShaderKind::whitted): Blinn-Phong, ambient, shadow rays, mirror
+/// reflection, refraction, emission.
+struct WhittedRayHook {
+    static constexpr const char* name = "rk_whitted";
+    struct Params {
+        float pad = 0.0f;
+    };
+    static constexpr unsigned max_rays = 2;
+    static constexpr unsigned max_shadow_rays = kPerLight;
+    static constexpr const char* source = kernels::kShadeWhitted;
+};
+static_assert(RayHook<NormalsRayHook> && RayHook<DepthRayHook> && RayHook<WhittedRayHook>);
+
+/// What a device frame did.
+struct DeviceRenderStats {
+    std::uint64_t primary = 0, continuation = 0, shadow = 0;  ///< rays traced per kind
+    unsigned bounces = 0;           ///< closest-hit launches (queues traced)
+    std::size_t peak_queue = 0;     ///< most rays in one queue (camera queue included)
+    std::size_t queue_bytes = 0;    ///< device memory held by the ray queues and hits after the frame
+    double render_ms = 0.0;         ///< wall time of the frame (launches to image read back)
+    std::uint64_t total() const noexcept { return primary + continuation + shadow; }
+};
+
+namespace detail {
+/// Throws std::invalid_argument unless `name` is a C identifier (it names OpenCL C functions).
+inline void check_ray_hook_name(const std::string& name) {
+    bool ok = !name.empty() && !(name[0] >= '0' && name[0] <= '9');
+    for (char c : name) ok = ok && ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_');
+    if (!ok) throw std::invalid_argument("raykit::cl: ray hook name \"" + name + "\" is not a C identifier");
+}
+}  // namespace detail
+
+/// Program of hook H for the renderer: base parts, camera, trace, shade API, the hook, the
+/// check of its params size, its shade kernel rk_dr_shade_NAME (cached per process).
+template <RayHook H>
+Program ray_hook_program(Device& dev) {
+    const std::string name = H::name;
+    detail::check_ray_hook_name(name);
+    std::vector<SourcePart> parts = base_parts();
+    parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
+    parts.push_back({"raykit/kernels/trace.hpp", kernels::kTrace});
+    parts.push_back({"raykit/kernels/shade.hpp", kernels::kShade});
+    parts.push_back({"<hook " + name + ">", H::source});
+    const std::string size = std::to_string(sizeof(typename H::Params));
+    parts.push_back({"<hook " + name + " params check>",
+                     "typedef char rk_ray_hook_" + name + "_params_must_be_" + size +
+                         "_bytes_like_the_Cpp_Params[(sizeof(" + name + "_params) == " + size + ") ? 1 : -1];\n"});
+    std::string stage = kernels::kShadeStage;
+    for (std::size_t at = stage.find("@NAME@"); at != std::string::npos; at = stage.find("@NAME@", at))
+        stage.replace(at, 6, name);
+    parts.push_back({"raykit/kernels/shade.hpp (" + name + ")", stage});
+    return build_program(dev, assemble(parts), raykit_build_options(dev));
+}
+
+class DeviceRenderer {
+public:
+    /// Uploads everything `scene` (from make_shade_scene / RenderScene::view) holds; the scene
+    /// need not outlive the renderer. Throws std::length_error for meshes beyond 32-bit indices.
+    DeviceRenderer(Device& dev, const ShadeScene& scene) : dev_(&dev) {
+        if (!scene.mesh || !scene.bvh || !scene.materials)
+            throw std::invalid_argument("raykit::cl::DeviceRenderer: incomplete ShadeScene (use make_shade_scene)");
+        const Mesh& m = *scene.mesh;
+        const Bvh& bvh = *scene.bvh;
+        if (m.positions.size() >= 0x55555555u || bvh.nodes.size() >= 0xFFFFFFFFu || m.triangles.size() >= 0xFFFFFFFFu)
+            throw std::length_error("raykit::cl::DeviceRenderer: mesh too large for 32-bit indices");
+        bounds_ = scene.bounds;
+        positions_ = Buffer<float>(dev, float_span(m.positions), CL_MEM_READ_ONLY);
+        triangles_ = Buffer<Triangle>(dev, m.triangles, CL_MEM_READ_ONLY);
+        nodes_ = Buffer<Node>(dev, std::span<const Node>(bvh.nodes.data(), bvh.nodes.size()), CL_MEM_READ_ONLY);
+        prim_ids_ = Buffer<std::uint32_t>(dev, bvh.prim_ids, CL_MEM_READ_ONLY);
+        node_count_ = static_cast<std::uint32_t>(bvh.nodes.size());
+        has_normals_ = !m.normals.empty();
+        has_texcoords_ = !m.texcoords.empty();
+        normals_ = Buffer<float>(dev, float_span(m.normals), CL_MEM_READ_ONLY);
+        texcoords_ = Buffer<float>(dev, std::span<const float>(reinterpret_cast<const float*>(m.texcoords.data()),
+                                                              m.texcoords.size() * 2),
+                                   CL_MEM_READ_ONLY);
+        material_ids_ = Buffer<std::uint32_t>(dev, m.material_ids, CL_MEM_READ_ONLY);
+        material_id_count_ = static_cast<std::uint32_t>(std::min<std::size_t>(m.material_ids.size(), m.triangles.size()));
+
+        // textures: one byte buffer, a table of (offset, size, srgb)
+        const MaterialTable& mt = *scene.materials;
+        std::map<const Texture*, std::int32_t> tex_index;
+        std::vector<TextureRecord> tex_records;
+        std::vector<std::uint8_t> texels;
+        auto add_texture = [&](const Texture* t) -> std::int32_t {
+            if (!t) return -1;
+            if (auto it = tex_index.find(t); it != tex_index.end()) return it->second;
+            if (texels.size() / 4 + std::size_t(t->width) * t->height >= 0xFFFFFFFFu)
+                throw std::length_error("raykit::cl::DeviceRenderer: textures exceed 2^32 texels");
+            TextureRecord r{static_cast<std::uint32_t>(texels.size() / 4), t->width, t->height, t->srgb ? 1u : 0u};
+            if (t->empty()) r.width = r.height = 0;
+            texels.insert(texels.end(), t->rgba.begin(), t->rgba.end());
+            const auto idx = static_cast<std::int32_t>(tex_records.size());
+            tex_records.push_back(r);
+            tex_index.emplace(t, idx);
+            return idx;
+        };
+        std::vector<MaterialRecord> mats;
+        for (const RenderMaterial& rm : mt.materials) {
+            MaterialRecord r{};
+            for (int c = 0; c < 3; ++c) {
+                r.kd[c] = rm.kd[c];
+                r.ks[c] = rm.ks[c];
+                r.ke[c] = rm.ke[c];
+                r.mirror[c] = rm.mirror[c];
+            }
+            r.ns = rm.ns;
+            r.ni = rm.ni;
+            r.transparency = rm.transparency;
+            r.texture = add_texture(rm.map_kd);
+            r.fresnel_mirror = rm.fresnel_mirror ? 1 : 0;
+            r.alpha_tested = rm.alpha_tested ? 1 : 0;
+            r.illum = rm.illum;
+            mats.push_back(r);
+        }
+        material_count_ = static_cast<std::uint32_t>(mats.size());
+        alpha_testing_ = scene.alpha_testing;
+        materials_ = Buffer<MaterialRecord>(dev, mats, CL_MEM_READ_ONLY);
+        textures_ = Buffer<TextureRecord>(dev, tex_records, CL_MEM_READ_ONLY);
+        texels_ = Buffer<std::uint8_t>(dev, texels, CL_MEM_READ_ONLY);
+        srgb_lut_ = Buffer<float>(dev, std::span<const float>(raykit::detail::srgb8_lut, 256), CL_MEM_READ_ONLY);
+        counters_ = Buffer<std::uint32_t>(dev, 2);
+        set_lights(scene.lights);
+    }
+
+    /// Replaces the lights.
+    void set_lights(std::span<const Light> lights) {
+        std::vector<LightRecord> rec;
+        for (const Light& l : lights) {
+            LightRecord r{};
+            for (int c = 0; c < 3; ++c) {
+                r.position[c] = l.position[c];
+                r.direction[c] = l.direction[c];
+                r.color[c] = l.color[c];
+            }
+            r.type = l.type == Light::Type::point ? 0u : 1u;
+            rec.push_back(r);
+        }
+        light_count_ = static_cast<std::uint32_t>(rec.size());
+        lights_ = Buffer<LightRecord>(*dev_, rec, CL_MEM_READ_ONLY);
+    }
+
+    /// Renders with the built-in hook for set.shader (normals, depth, whitted). Throws
+    /// std::invalid_argument for ao and debug_cost, and for an invalid camera.
+    Image render(const Camera& cam, const ShadeSettings& set, DeviceRenderStats* stats = nullptr) {
+        switch (set.shader) {
+            case ShaderKind::normals: return render_hook<NormalsRayHook>(cam, set, {}, stats);
+            case ShaderKind::depth: return render_hook<DepthRayHook>(cam, set, {}, stats);
+            case ShaderKind::whitted: return render_hook<WhittedRayHook>(cam, set, {}, stats);
+            default:
+                throw std::invalid_argument(std::string("raykit::cl::DeviceRenderer: shader '") +
+                                            shader_name(set.shader) + "' is not available on the device");
+        }
+    }
+
+    /// Renders with ray hook H (see the header comment). `set` supplies max_depth, ambient,
+    /// background, filter, shadows, depth_far and min_weight to the hook (ctx->set).
+    template <RayHook H>
+    Image render_hook(const Camera& cam, const ShadeSettings& set, const typename H::Params& params = {},
+                      DeviceRenderStats* stats = nullptr) {
+        using Clock = std::chrono::steady_clock;
+        const auto t0 = Clock::now();
+        const CameraFrame frame = cam.frame();
+        const std::size_t n_pixels = std::size_t(frame.width) * frame.height;
+        if (n_pixels >= 0xFFFFFFFFu / 4) throw std::length_error("raykit::cl::DeviceRenderer: image too large");
+        Kernels& k = kernels_for<H>();
+        const RenderSettingsRecord rec = settings_record(set, frame);
+        const std::uint32_t max_rays = H::max_rays;
+        const std::uint32_t max_shadows = H::max_shadow_rays == kPerLight ? light_count_ : H::max_shadow_rays;
+
+        DeviceRenderStats st;
+        Device& dev = *dev_;
+        image_.reserve(dev, n_pixels * 4);
+        queue_.reserve(dev, n_pixels);
+        set_args(k.camera, frame, queue_, image_);
+        launch(dev.queue(), k.camera, n_pixels, kTraceGroupSize);
+        std::size_t n = n_pixels;
+        st.primary = n;
+        st.peak_queue = n;
+        for (std::uint32_t depth = 0; n > 0; ++depth) {
+            ++st.bounces;
+            hits_.reserve(dev, n);
+            set_args(k.closest, nodes_, prim_ids_, triangles_, positions_, node_count_, queue_, hits_,
+                     static_cast<std::uint32_t>(n), materials_, material_ids_, texcoords_, textures_, texels_, rec);
+            launch(dev.queue(), k.closest, n, kTraceGroupSize);
+            const std::uint32_t rays_here = depth < set.max_depth ? max_rays : 0u;
+            const std::size_t next_cap = n * rays_here, shadow_cap = n * max_shadows;
+            if (next_cap >= 0xFFFFFFFFu || shadow_cap >= 0xFFFFFFFFu)
+                throw std::length_error("raykit::cl::DeviceRenderer: ray queue beyond 2^32 rays");
+            next_.reserve(dev, next_cap);
+            shadow_.reserve(dev, shadow_cap);
+            const std::uint32_t zero[2] = {0u, 0u};
+            counters_.write(dev, std::span<const std::uint32_t>(zero, 2));
+            set_args(k.shade, queue_, hits_, static_cast<std::uint32_t>(n), triangles_, positions_, normals_,
+                     texcoords_, material_ids_, materials_, textures_, texels_, srgb_lut_, lights_, rec, image_, next_,
+                     counters_, shadow_, rays_here, max_shadows, params);
+            launch(dev.queue(), k.shade, n, kTraceGroupSize);
+            std::uint32_t cnt[2] = {0u, 0u};
+            counters_.read(dev, std::span<std::uint32_t>(cnt, 2));
+            const std::size_t next_n = std::min<std::size_t>(cnt[0], next_cap);
+            const std::size_t shadow_n = std::min<std::size_t>(cnt[1], shadow_cap);
+            if (shadow_n > 0) {
+                set_args(k.shadow, nodes_, prim_ids_, triangles_, positions_, node_count_, shadow_,
+                         static_cast<std::uint32_t>(shadow_n), image_, materials_, material_ids_, texcoords_,
+                         textures_, texels_, rec);
+                launch(dev.queue(), k.shadow, shadow_n, kTraceGroupSize);
+            }
+            st.shadow += shadow_n;
+            st.continuation += next_n;
+            st.peak_queue = std::max(st.peak_queue, next_n);
+            std::swap(queue_, next_);
+            n = next_n;
+        }
+        std::vector<float> px(n_pixels * 4);
+        image_.read(dev, std::span<float>(px));
+        Image img(frame.width, frame.height, vec4(0.0f));
+        for (std::size_t i = 0; i < n_pixels; ++i)
+            img.pixels[i] = vec4(px[4 * i], px[4 * i + 1], px[4 * i + 2], px[4 * i + 3]);
+        st.queue_bytes = queue_.bytes() + next_.bytes() + shadow_.bytes() + hits_.bytes();
+        st.render_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        if (stats) *stats = st;
+        return img;
+    }
+
+    /// Builds (or finds) the program and kernels of hook H now, e.g. before timing frames.
+    template <RayHook H>
+    const Program& prepare() {
+        return kernels_for<H>().program;
+    }
+
+    Device& device() noexcept { return *dev_; }
+
+private:
+    struct Kernels {
+        Program program;
+        ::cl::Kernel camera, closest, shadow, shade;
+    };
+
+    template <RayHook H>
+    Kernels& kernels_for() {
+        const std::string key = std::string(H::name) + '\n' + H::source;
+        if (auto it = kernels_.find(key); it != kernels_.end()) return it->second;
+        Kernels k;
+        k.program = ray_hook_program<H>(*dev_);
+        k.camera = k.program.kernel("rk_dr_camera");
+        k.closest = k.program.kernel("rk_dr_closest");
+        k.shadow = k.program.kernel("rk_dr_shadow");
+        k.shade = k.program.kernel(std::string("rk_dr_shade_") + H::name);
+        return kernels_.emplace(key, std::move(k)).first->second;
+    }
+
+    RenderSettingsRecord settings_record(const ShadeSettings& s, const CameraFrame& frame) const {
+        RenderSettingsRecord r{};
+        for (int c = 0; c < 3; ++c) {
+            r.ambient[c] = s.ambient[c];
+            r.background[c] = s.background[c];
+        }
+        r.min_weight = s.min_weight;
+        float far = s.depth_far;
+        if (!(far > 0.0f)) {  // as the CPU's depth shader: farthest corner of the scene bounds
+            far = 0.0f;
+            for (int c = 0; c < 8; ++c) {
+                const vec3 corner((c & 1) ? bounds_.max.x : bounds_.min.x, (c & 2) ? bounds_.max.y : bounds_.min.y,
+                                  (c & 4) ? bounds_.max.z : bounds_.min.z);
+                far = std::max(far, glm::length(corner - frame.origin));
+            }
+        }
+        r.depth_far = far;
+        r.width = frame.width;
+        r.height = frame.height;
+        r.max_depth = s.max_depth;
+        r.shadows = s.shadows ? 1u : 0u;
+        r.filter = s.filter == TextureFilter::nearest ? 1u : 0u;
+        r.light_count = light_count_;
+        r.has_normals = has_normals_ ? 1u : 0u;
+        r.has_texcoords = has_texcoords_ ? 1u : 0u;
+        r.material_id_count = material_id_count_;
+        r.material_count = material_count_;
+        r.alpha_testing = alpha_testing_ ? 1u : 0u;
+        return r;
+    }
+
+    Device* dev_;
+    AABB bounds_;
+    Buffer<float> positions_, normals_, texcoords_, srgb_lut_, image_;
+    Buffer<Triangle> triangles_;
+    Buffer<Node> nodes_;
+    Buffer<std::uint32_t> prim_ids_, material_ids_, counters_;
+    Buffer<MaterialRecord> materials_;
+    Buffer<TextureRecord> textures_;
+    Buffer<std::uint8_t> texels_;
+    Buffer<LightRecord> lights_;
+    Buffer<PathRay> queue_, next_;
+    Buffer<ShadowRay> shadow_;
+    Buffer<Hit> hits_;
+    std::uint32_t node_count_ = 0, material_id_count_ = 0, material_count_ = 0, light_count_ = 0;
+    bool has_normals_ = false, has_texcoords_ = false, alpha_testing_ = false;
+    std::map<std::string, Kernels> kernels_;
+};
+
+}  // namespace raykit::cl

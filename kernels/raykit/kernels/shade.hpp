@@ -1,0 +1,687 @@
+// raykit/kernels/shade.hpp — the wavefront renderer's device side: path and
+// shadow queues, the surface at a hit, the ray-hook API and the built-in
+// shaders (normals, depth, whitted). Host side: include/raykit/cl/render.hpp.
+//
+// A frame is a loop over bounces. Queue 0 holds one camera ray per pixel
+// (pixel centres). Per bounce:
+//   rk_dr_closest        closest hit of every ray of the current queue
+//   rk_dr_shade_NAME     per ray: the surface at the hit, then the hook NAME,
+//                        which may add colour to the ray's pixel and emit
+//                        shadow rays (any-hit) and continuation rays (closest
+//                        hit, next bounce); emitted rays get their slot in
+//                        the next queue by atomic_inc on that queue's counter
+//   rk_dr_shadow         any hit of every emitted shadow ray; unblocked ones
+//                        add their colour to their pixel
+// until the next queue is empty. The host sizes each queue before the shade
+// launch as (rays of this bounce) × (the hook's maximum per hit), so queues
+// grow with the rays alive, never with pixels × a fixed maximum.
+//
+// Colour accumulation: OpenCL 1.2 has no atomic float add, and several rays
+// of one pixel (a reflection and a refraction, their shadow rays) may add to
+// it in the same launch, so rk_add_color adds with an atomic_cmpxchg loop on
+// the float's bits (rk_atomic_add_float). The order of additions, and so the
+// last bits of a pixel, may vary between runs.
+//
+// Ray-hook API (what a hook's source may call; ctx is the hook's first argument)
+//   void  rk_add_color(rk_ctx* ctx, float3 c)      add c (linear RGB) to the path's pixel
+//   void  rk_set_alpha(rk_ctx* ctx, float a)       set the pixel's alpha (camera rays only, depth 0)
+//   bool  rk_emit_shadow(rk_ctx* ctx, float3 org, float3 dir, float tmax, float3 c)
+//                                                  any-hit query on [0, tmax]: adds c to the
+//                                                  pixel when nothing blocks it; false when the
+//                                                  hook's shadow-ray budget per hit is used up
+//   bool  rk_emit_ray(rk_ctx* ctx, float3 org, float3 dir, float3 weight, uint kind)
+//                                                  closest-hit continuation at depth + 1 with
+//                                                  throughput `weight`; false (nothing emitted)
+//                                                  when depth >= max_depth or the budget is used
+//   rk_material rk_get_material(const rk_ctx* ctx, uint id)
+//   float4 rk_texture_sample(const rk_ctx* ctx, int texture, float2 uv)   linear RGBA,
+//                                                  the settings' filter, wrap addressing
+//   float3 rk_offset_origin(float3 p, float3 n)    raykit::offset_ray_origin
+//   uint  rk_light_count(const rk_ctx*), rk_light rk_get_light(const rk_ctx*, uint i)
+//   ctx->set                                       the frame's rk_render_settings
+// The hook's signature:
+//   void NAME(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit,
+//             const rk_surface* s, NAME_params p)
+// hit->prim == RK_INVALID on a miss (then *s is all zero). path->weight is the
+// path's throughput, path->depth its bounce (0 = camera ray), path->pixel its
+// pixel (y · width + x), path->kind what the emitter said (0 = camera ray).
+#pragma once
+
+namespace raykit::kernels {
+
+inline constexpr const char* kShade = R"CLC(
+/* Path ray of a bounce queue (raykit::cl::PathRay). */
+typedef struct {
+    rk_ray ray;
+    float weight[3];
+    uint pixel;
+    uint depth;
+    uint kind;
+    uint pad0;
+    uint pad1;
+} rk_path_ray;
+
+/* Shadow ray: colour added to `pixel` when nothing blocks it (raykit::cl::ShadowRay). */
+typedef struct {
+    rk_ray ray;
+    float color[3];
+    uint pixel;
+} rk_shadow_ray;
+
+/* Material (raykit::cl::MaterialRecord): see raykit::RenderMaterial. */
+typedef struct {
+    float kd[3];
+    float ks[3];
+    float ke[3];
+    float mirror[3];
+    float ns;
+    float ni;
+    float transparency;
+    int texture;          /* map_Kd: index into the texture table, -1 = none */
+    int fresnel_mirror;
+    int alpha_tested;
+    int illum;
+    int pad;
+} rk_material;
+
+/* Texture (raykit::cl::TextureRecord): texels [offset, offset + width·height) of
+   the texel buffer, RGBA bytes, row 0 = top row of the file. */
+typedef struct {
+    uint offset;
+    uint width;
+    uint height;
+    uint srgb;
+} rk_texture;
+
+/* Light (raykit::cl::LightRecord): type 0 = point, 1 = directional. */
+typedef struct {
+    float position[3];
+    uint type;
+    float direction[3];
+    float pad0;
+    float color[3];
+    float pad1;
+} rk_light;
+
+/* Per-frame settings (raykit::cl::RenderSettingsRecord). */
+typedef struct {
+    float ambient[3];
+    float background[3];
+    float min_weight;
+    float depth_far;      /* resolved on the host: > 0, or 0 = depth shader gives 0 */
+    uint width;
+    uint height;
+    uint max_depth;
+    uint shadows;
+    uint filter;          /* 0 bilinear, 1 nearest */
+    uint light_count;
+    uint has_normals;
+    uint has_texcoords;
+    uint material_id_count;
+    uint material_count;  /* including the default material (the last one) */
+    uint alpha_testing;   /* some material has alpha cut-outs: traversals test them */
+    uint pad1;
+} rk_render_settings;
+
+/* The surface at a hit (raykit::SurfacePoint). */
+typedef struct {
+    float3 p;       /* position */
+    float3 ng;      /* unit geometric normal facing the incoming ray */
+    float3 ns;      /* unit shading normal facing the incoming ray */
+    float3 d;       /* unit ray direction */
+    float3 base;    /* Kd times the map_Kd colour */
+    float2 uv;
+    uint material;  /* index into the material table (default material resolved) */
+    int entering;   /* the ray arrives from the outside */
+} rk_surface;
+
+typedef struct {
+    __global const rk_material* materials;
+    __global const rk_texture* textures;
+    __global const uchar4* texels;
+    __global const float* srgb_lut;
+    __global const rk_light* lights;
+    rk_render_settings set;
+    __global float* image;            /* 4 floats per pixel: r, g, b, alpha */
+    __global rk_path_ray* next;
+    __global uint* counters;          /* [0] next-queue rays, [1] shadow rays */
+    __global rk_shadow_ray* shadows;
+    uint pixel;
+    uint depth;
+    uint rays_left;
+    uint shadows_left;
+} rk_ctx;
+
+RK_INLINE float3 rk_f3(const float a[3]) { return (float3)(a[0], a[1], a[2]); }
+RK_INLINE float3 rk_g3(__global const float* a) { return (float3)(a[0], a[1], a[2]); }
+RK_INLINE float rk_max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
+
+/* Atomic float add by compare-and-swap on the bits (OpenCL 1.2 has no float atomics). */
+RK_INLINE void rk_atomic_add_float(__global float* a, float v) {
+    if (v == 0.0f) return;
+    volatile __global uint* u = (volatile __global uint*)a;
+    uint old = *u, assumed;
+    do {
+        assumed = old;
+        old = atomic_cmpxchg(u, assumed, as_uint(as_float(assumed) + v));
+    } while (old != assumed);
+}
+
+RK_INLINE void rk_add_color(rk_ctx* ctx, float3 c) {
+    __global float* px = ctx->image + (size_t)4 * ctx->pixel;
+    rk_atomic_add_float(px + 0, c.x);
+    rk_atomic_add_float(px + 1, c.y);
+    rk_atomic_add_float(px + 2, c.z);
+}
+
+RK_INLINE void rk_set_alpha(rk_ctx* ctx, float a) {
+    if (ctx->depth == 0) ctx->image[(size_t)4 * ctx->pixel + 3] = a;
+}
+
+RK_INLINE rk_ray rk_make_ray(float3 org, float3 dir, float tmin, float tmax) {
+    rk_ray r;
+    r.org[0] = org.x; r.org[1] = org.y; r.org[2] = org.z;
+    r.dir[0] = dir.x; r.dir[1] = dir.y; r.dir[2] = dir.z;
+    r.tmin = tmin;
+    r.tmax = tmax;
+    return r;
+}
+
+RK_INLINE bool rk_emit_shadow(rk_ctx* ctx, float3 org, float3 dir, float tmax, float3 c) {
+    if (ctx->shadows_left == 0) return false;
+    --ctx->shadows_left;
+    const uint slot = atomic_inc(ctx->counters + 1);
+    rk_shadow_ray s;
+    s.ray = rk_make_ray(org, dir, 0.0f, tmax);
+    s.color[0] = c.x; s.color[1] = c.y; s.color[2] = c.z;
+    s.pixel = ctx->pixel;
+    ctx->shadows[slot] = s;
+    return true;
+}
+
+RK_INLINE bool rk_emit_ray(rk_ctx* ctx, float3 org, float3 dir, float3 weight, uint kind) {
+    if (ctx->depth >= ctx->set.max_depth || ctx->rays_left == 0) return false;
+    --ctx->rays_left;
+    const uint slot = atomic_inc(ctx->counters + 0);
+    rk_path_ray r;
+    r.ray = rk_make_ray(org, dir, 0.0f, INFINITY);
+    r.weight[0] = weight.x; r.weight[1] = weight.y; r.weight[2] = weight.z;
+    r.pixel = ctx->pixel;
+    r.depth = ctx->depth + 1;
+    r.kind = kind;
+    r.pad0 = 0u;
+    r.pad1 = 0u;
+    ctx->next[slot] = r;
+    return true;
+}
+
+RK_INLINE rk_material rk_get_material(const rk_ctx* ctx, uint id) {
+    return ctx->materials[id < ctx->set.material_count ? id : ctx->set.material_count - 1];
+}
+RK_INLINE uint rk_light_count(const rk_ctx* ctx) { return ctx->set.light_count; }
+RK_INLINE rk_light rk_get_light(const rk_ctx* ctx, uint i) { return ctx->lights[i]; }
+
+/* raykit::offset_ray_origin (Wächter & Binder). */
+RK_INLINE float3 rk_offset_origin(float3 p, float3 n) {
+    const float pa[3] = {p.x, p.y, p.z}, na[3] = {n.x, n.y, n.z};
+    float out[3];
+    for (int a = 0; a < 3; ++a) {
+        const int of = (int)(256.0f * na[a]);
+        const int bits = as_int(pa[a]);
+        const float moved = as_float(bits + (pa[a] < 0.0f ? -of : of));
+        out[a] = fabs(pa[a]) < (1.0f / 32.0f) ? pa[a] + (1.0f / 65536.0f) * na[a] : moved;
+    }
+    return (float3)(out[0], out[1], out[2]);
+}
+
+/* ---- textures: the twins of raykit::Texture::sample */
+RK_INLINE float rk_frac(float a) {
+    if (!isfinite(a)) return 0.0f;
+    const float f = a - floor(a);
+    return f < 1.0f ? f : 0.0f;
+}
+RK_INLINE float4 rk_texel(const rk_ctx* ctx, const rk_texture* t, uint x, uint y) {
+    const uchar4 b = ctx->texels[t->offset + y * t->width + x];
+    const float k = 1.0f / 255.0f;
+    if (t->srgb) return (float4)(ctx->srgb_lut[b.x], ctx->srgb_lut[b.y], ctx->srgb_lut[b.z], (float)b.w * k);
+    return (float4)((float)b.x * k, (float)b.y * k, (float)b.z * k, (float)b.w * k);
+}
+RK_INLINE uint rk_wrap(long i, uint n) { return (uint)(i < 0 ? i + (long)n : (i >= (long)n ? i - (long)n : i)); }
+
+RK_INLINE float4 rk_texture_sample(const rk_ctx* ctx, int texture, float2 uv) {
+    if (texture < 0) return (float4)(1.0f);
+    const rk_texture t = ctx->textures[texture];
+    if (t.width == 0 || t.height == 0) return (float4)(0.0f);
+    if (ctx->set.filter == 1u) {
+        const float u = rk_frac(uv.x), v = rk_frac(uv.y);
+        const uint x = min((uint)(u * (float)t.width), t.width - 1);
+        const uint yu = min((uint)(v * (float)t.height), t.height - 1);
+        return rk_texel(ctx, &t, x, t.height - 1 - yu);
+    }
+    const float fx = rk_frac(uv.x) * (float)t.width - 0.5f;
+    const float fy = rk_frac(uv.y) * (float)t.height - 0.5f;
+    const float flx = floor(fx), fly = floor(fy);
+    const float ax = fx - flx, ay = fy - fly;
+    const long ix = (long)flx, iy = (long)fly;
+    const uint x0 = rk_wrap(ix, t.width), x1 = rk_wrap(ix + 1, t.width);
+    const uint y0 = t.height - 1 - rk_wrap(iy, t.height), y1 = t.height - 1 - rk_wrap(iy + 1, t.height);
+    const float4 a = rk_texel(ctx, &t, x0, y0), b = rk_texel(ctx, &t, x1, y0);
+    const float4 c = rk_texel(ctx, &t, x0, y1), d = rk_texel(ctx, &t, x1, y1);
+    return (a * (1.0f - ax) + b * ax) * (1.0f - ay) + (c * (1.0f - ax) + d * ax) * ay;
+}
+
+/* ---- the surface at a hit: the twin of raykit::surface_point */
+RK_INLINE rk_surface rk_surface_at(const rk_ctx* ctx, __global const rk_triangle* tris, __global const float* pos,
+                                   __global const float* normals, __global const float* texcoords,
+                                   __global const uint* material_ids, const rk_hit* h, float3 d) {
+    const rk_triangle t = tris[h->prim];
+    const float w0 = 1.0f - h->u - h->v;
+    const float3 p0 = vload3(t.v[0], pos), p1 = vload3(t.v[1], pos), p2 = vload3(t.v[2], pos);
+    rk_surface s;
+    s.p = p0 * w0 + p1 * h->u + p2 * h->v;
+    s.d = d;
+    float3 ng = cross(p1 - p0, p2 - p0);
+    const float lg = length(ng);
+    ng = lg > 0.0f && isfinite(lg) ? ng / lg : -d;
+    int entering = dot(ng, d) < 0.0f;
+    float3 ns = ng;
+    if (ctx->set.has_normals) {
+        const float3 n = vload3(t.v[0], normals) * w0 + vload3(t.v[1], normals) * h->u + vload3(t.v[2], normals) * h->v;
+        const float ln = length(n);
+        if (ln > 1e-12f && isfinite(ln)) {
+            ns = n / ln;
+            entering = dot(ns, d) < 0.0f;
+        }
+    }
+    s.entering = entering;
+    s.ng = dot(ng, d) > 0.0f ? -ng : ng;
+    s.ns = dot(ns, d) > 0.0f ? -ns : ns;
+    s.uv = (float2)(0.0f);
+    if (ctx->set.has_texcoords)
+        s.uv = vload2(t.v[0], texcoords) * w0 + vload2(t.v[1], texcoords) * h->u + vload2(t.v[2], texcoords) * h->v;
+    const uint last = ctx->set.material_count - 1;
+    uint id = last;
+    if (h->prim < ctx->set.material_id_count) {
+        id = material_ids[h->prim];
+        if (id >= last) id = last;
+    }
+    s.material = id;
+    const rk_material m = ctx->materials[id];
+    s.base = rk_f3(m.kd);
+    if (m.texture >= 0) s.base *= rk_texture_sample(ctx, m.texture, s.uv).xyz;
+    return s;
+}
+
+/* ---- alpha cut-outs: the twins of raykit::detail::cut_out and Texture::sample_alpha */
+typedef struct {
+    __global const rk_material* materials;
+    __global const uint* material_ids;
+    __global const float* texcoords;
+    __global const rk_texture* textures;
+    __global const uchar4* texels;
+    rk_render_settings set;
+} rk_alpha_scene;
+
+RK_INLINE float rk_alpha_byte(const rk_alpha_scene* a, const rk_texture* t, uint x, uint y) {
+    return (float)a->texels[t->offset + y * t->width + x].w;
+}
+
+RK_INLINE float rk_texture_alpha(const rk_alpha_scene* a, int texture, float2 uv) {
+    if (texture < 0) return 1.0f;
+    const rk_texture t = a->textures[texture];
+    if (t.width == 0 || t.height == 0) return 1.0f;
+    const float k = 1.0f / 255.0f;
+    if (a->set.filter == 1u) {
+        const float u = rk_frac(uv.x), v = rk_frac(uv.y);
+        const uint x = min((uint)(u * (float)t.width), t.width - 1);
+        const uint yu = min((uint)(v * (float)t.height), t.height - 1);
+        return rk_alpha_byte(a, &t, x, t.height - 1 - yu) * k;
+    }
+    const float fx = rk_frac(uv.x) * (float)t.width - 0.5f;
+    const float fy = rk_frac(uv.y) * (float)t.height - 0.5f;
+    const float flx = floor(fx), fly = floor(fy);
+    const float ax = fx - flx, ay = fy - fly;
+    const long ix = (long)flx, iy = (long)fly;
+    const uint x0 = rk_wrap(ix, t.width), x1 = rk_wrap(ix + 1, t.width);
+    const uint y0 = t.height - 1 - rk_wrap(iy, t.height), y1 = t.height - 1 - rk_wrap(iy + 1, t.height);
+    const float va = rk_alpha_byte(a, &t, x0, y0), vb = rk_alpha_byte(a, &t, x1, y0);
+    const float vc = rk_alpha_byte(a, &t, x0, y1), vd = rk_alpha_byte(a, &t, x1, y1);
+    return ((va * (1.0f - ax) + vb * ax) * (1.0f - ay) + (vc * (1.0f - ax) + vd * ax) * ay) * k;
+}
+
+/* True when the hit (prim, u, v) lies on a cut-out texel of an alpha-tested material. */
+RK_INLINE bool rk_cut_out(const rk_alpha_scene* a, __global const rk_triangle* tris, uint prim, float u, float v) {
+    const uint last = a->set.material_count - 1;
+    uint id = last;
+    if (prim < a->set.material_id_count) {
+        id = a->material_ids[prim];
+        if (id >= last) id = last;
+    }
+    __global const rk_material* m = a->materials + id;
+    if (!m->alpha_tested) return false;
+    float2 uv = (float2)(0.0f);
+    if (a->set.has_texcoords) {
+        const rk_triangle t = tris[prim];
+        uv = vload2(t.v[0], a->texcoords) * (1.0f - u - v) + vload2(t.v[1], a->texcoords) * u +
+             vload2(t.v[2], a->texcoords) * v;
+    }
+    return rk_texture_alpha(a, m->texture, uv) < 0.5f;
+}
+
+/* rk_trace_tree (kernels/raykit/kernels/trace.hpp) for one mesh with the cut-out test in the
+   leaves, as the CPU's Tracer<.., kAlpha = true>: a cut-out candidate is skipped and the ray
+   goes on through it. */
+RK_INLINE bool rk_trace_alpha(__global const rk_node* restrict nodes, __global const uint* restrict prim_ids,
+                              __global const rk_triangle* restrict tris, __global const float* restrict pos,
+                              const uint node_count, const rk_ray* ray, const int any, rk_hit* hit,
+                              const rk_alpha_scene* a) {
+    if (node_count == 0) return false;
+    const rk_slab_ray s = rk_slab_prepare(ray->org, ray->dir, ray->tmin);
+    const rk_wt_ray w = rk_wt_prepare(ray->org, ray->dir);
+    const float tmin = ray->tmin, tlimit = ray->tmax;
+    float tmax = ray->tmax;
+    float troot;
+    if (!rk_slab(&s, nodes, tmax, &troot)) return false;
+    uint st_node[RK_MAX_DEPTH];
+    float st_t[RK_MAX_DEPTH];
+    int sp = 0;
+    uint cur = 0;
+    bool found = false;
+    for (;;) {
+        __global const rk_node* n = nodes + cur;
+        const uint index = n->index, count = n->count;
+        if (count != 0) {
+            for (uint k = index; k < index + count; ++k) {
+                const uint p = prim_ids[k];
+                const rk_triangle t = tris[p];
+                const float3 p0 = vload3(t.v[0], pos), p1 = vload3(t.v[1], pos), p2 = vload3(t.v[2], pos);
+                float th, uh, vh;
+                if (any) {
+                    if (rk_wt_intersect(&w, p0, p1, p2, tmin, tlimit, &th, &uh, &vh) && !rk_cut_out(a, tris, p, uh, vh))
+                        return true;
+                } else if (rk_wt_intersect(&w, p0, p1, p2, tmin, tmax, &th, &uh, &vh) &&
+                           (th < hit->t || p < hit->prim) && !rk_cut_out(a, tris, p, uh, vh)) {
+                    hit->t = th;
+                    hit->u = uh;
+                    hit->v = vh;
+                    hit->prim = p;
+                    tmax = th;
+                    found = true;
+                }
+            }
+        } else {
+            float tl, tr;
+            const bool hl = rk_slab(&s, nodes + index, tmax, &tl);
+            const bool hr = rk_slab(&s, nodes + index + 1, tmax, &tr);
+            if (hl && hr) {
+                uint nearc = index, farc = index + 1;
+                float tf = tr;
+                if (tr < tl) {
+                    nearc = index + 1;
+                    farc = index;
+                    tf = tl;
+                }
+                if (sp == RK_MAX_DEPTH) return found;
+                st_node[sp] = farc;
+                st_t[sp] = tf;
+                ++sp;
+                cur = nearc;
+                continue;
+            }
+            if (hl) {
+                cur = index;
+                continue;
+            }
+            if (hr) {
+                cur = index + 1;
+                continue;
+            }
+        }
+        for (;;) {
+            if (sp == 0) return found;
+            --sp;
+            if (st_t[sp] <= tmax * RK_SLAB_EXIT_SCALE) {
+                cur = st_node[sp];
+                break;
+            }
+        }
+    }
+}
+
+/* Closest (any == 0) or any hit of one mesh, with cut-outs when the scene has them. */
+RK_INLINE bool rk_dr_trace(__global const rk_node* nodes, __global const uint* prim_ids,
+                           __global const rk_triangle* tris, __global const float* pos, const uint node_count,
+                           const rk_ray* r, const int any, rk_hit* h, const rk_alpha_scene* a) {
+    if (a->set.alpha_testing) return rk_trace_alpha(nodes, prim_ids, tris, pos, node_count, r, any, h, a);
+    rk_object ob = {0u, node_count, 0u, 0u, 0u, 0u, 0u, 0u};
+    return rk_trace_tree(nodes, prim_ids, tris, pos, &ob, r, r->tmax, any, h);
+}
+
+/* ---- fixed kernels */
+
+/* Camera rays through the pixel centres into queue 0; clears the image. */
+__kernel void rk_dr_camera(const rk_camera cam, __global rk_path_ray* queue, __global float4* image) {
+    const uint i = (uint)get_global_id(0);
+    if (i >= cam.width * cam.height) return;
+    const uint y = i / cam.width;
+    const uint x = i - y * cam.width;
+    rk_path_ray r;
+    r.ray = rk_camera_ray(&cam, x, y, 0.5f, 0.5f);
+    r.weight[0] = 1.0f; r.weight[1] = 1.0f; r.weight[2] = 1.0f;
+    r.pixel = i;
+    r.depth = 0u;
+    r.kind = 0u;
+    r.pad0 = 0u;
+    r.pad1 = 0u;
+    queue[i] = r;
+    image[i] = (float4)(0.0f);
+}
+
+#define RK_ALPHA_ARGS __global const rk_material* materials, __global const uint* material_ids, \
+    __global const float* texcoords, __global const rk_texture* textures, __global const uchar4* texels, \
+    const rk_render_settings set
+#define RK_ALPHA_SCENE const rk_alpha_scene a = {materials, material_ids, texcoords, textures, texels, set}
+
+__kernel void rk_dr_closest(__global const rk_node* nodes, __global const uint* prim_ids,
+                            __global const rk_triangle* tris, __global const float* pos, const uint node_count,
+                            __global const rk_path_ray* queue, __global rk_hit* hits, const uint n, RK_ALPHA_ARGS) {
+    const uint i = (uint)get_global_id(0);
+    if (i >= n) return;
+    RK_ALPHA_SCENE;
+    const rk_ray r = queue[i].ray;
+    rk_hit h = rk_miss();
+    if (rk_dr_trace(nodes, prim_ids, tris, pos, node_count, &r, 0, &h, &a) && h.prim != RK_INVALID) h.inst = 0u;
+    hits[i] = h;
+}
+
+__kernel void rk_dr_shadow(__global const rk_node* nodes, __global const uint* prim_ids,
+                           __global const rk_triangle* tris, __global const float* pos, const uint node_count,
+                           __global const rk_shadow_ray* queue, const uint n, __global float* image, RK_ALPHA_ARGS) {
+    const uint i = (uint)get_global_id(0);
+    if (i >= n) return;
+    RK_ALPHA_SCENE;
+    const rk_shadow_ray s = queue[i];
+    rk_hit h = rk_miss();
+    if (rk_dr_trace(nodes, prim_ids, tris, pos, node_count, &s.ray, 1, &h, &a)) return;
+    __global float* px = image + (size_t)4 * s.pixel;
+    rk_atomic_add_float(px + 0, s.color[0]);
+    rk_atomic_add_float(px + 1, s.color[1]);
+    rk_atomic_add_float(px + 2, s.color[2]);
+}
+)CLC";
+
+/// The shade kernel of hook @NAME@ (the host replaces @NAME@ by the hook's name).
+inline constexpr const char* kShadeStage = R"CLC(
+__kernel void rk_dr_shade_@NAME@(__global const rk_path_ray* queue, __global const rk_hit* hits, const uint n,
+                                 __global const rk_triangle* tris, __global const float* pos,
+                                 __global const float* normals, __global const float* texcoords,
+                                 __global const uint* material_ids, __global const rk_material* materials,
+                                 __global const rk_texture* textures, __global const uchar4* texels,
+                                 __global const float* srgb_lut, __global const rk_light* lights,
+                                 const rk_render_settings set, __global float* image,
+                                 __global rk_path_ray* next, __global uint* counters,
+                                 __global rk_shadow_ray* shadows, const uint max_rays, const uint max_shadows,
+                                 const @NAME@_params params) {
+    const uint i = (uint)get_global_id(0);
+    if (i >= n) return;
+    const rk_path_ray path = queue[i];
+    const rk_hit hit = hits[i];
+    rk_ctx ctx;
+    ctx.materials = materials;
+    ctx.textures = textures;
+    ctx.texels = texels;
+    ctx.srgb_lut = srgb_lut;
+    ctx.lights = lights;
+    ctx.set = set;
+    ctx.image = image;
+    ctx.next = next;
+    ctx.counters = counters;
+    ctx.shadows = shadows;
+    ctx.pixel = path.pixel;
+    ctx.depth = path.depth;
+    ctx.rays_left = max_rays;
+    ctx.shadows_left = max_shadows;
+    rk_surface s;
+    s.p = s.ng = s.ns = s.d = s.base = (float3)(0.0f);
+    s.uv = (float2)(0.0f);
+    s.material = 0u;
+    s.entering = 1;
+    if (hit.prim != RK_INVALID)
+        s = rk_surface_at(&ctx, tris, pos, normals, texcoords, material_ids, &hit, normalize(rk_f3(path.ray.dir)));
+    @NAME@(&ctx, &path, &hit, &s, params);
+}
+)CLC";
+
+/// Built-in hooks (their C++ types are in include/raykit/cl/render.hpp).
+inline constexpr const char* kShadeNormals = R"CLC(typedef struct {
+    float pad;
+} rk_normals_params;
+
+void rk_normals(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surface* s, rk_normals_params p) {
+    if (hit->prim == RK_INVALID) {
+        rk_add_color(ctx, rk_f3(ctx->set.background));
+        return;
+    }
+    rk_set_alpha(ctx, 1.0f);
+    rk_add_color(ctx, s->ns * 0.5f + (float3)(0.5f));
+}
+)CLC";
+
+inline constexpr const char* kShadeDepth = R"CLC(typedef struct {
+    float pad;
+} rk_depth_params;
+
+void rk_depth(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surface* s, rk_depth_params p) {
+    if (hit->prim == RK_INVALID) {
+        rk_add_color(ctx, rk_f3(ctx->set.background));
+        return;
+    }
+    rk_set_alpha(ctx, 1.0f);
+    const float far = ctx->set.depth_far;
+    const float dist = hit->t * length(rk_f3(path->ray.dir));
+    rk_add_color(ctx, (float3)(far > 0.0f ? clamp(1.0f - dist / far, 0.0f, 1.0f) : 0.0f));
+}
+)CLC";
+
+inline constexpr const char* kShadeWhitted = R"CLC(typedef struct {
+    float pad;
+} rk_whitted_params;
+
+/* Exact dielectric Fresnel reflectance (raykit::detail::fresnel_dielectric). */
+RK_INLINE float rk_fresnel(float cos_i, float eta, float* cos_t) {
+    cos_i = clamp(cos_i, 0.0f, 1.0f);
+    const float sin2_t = eta * eta * fmax(0.0f, 1.0f - cos_i * cos_i);
+    if (sin2_t >= 1.0f) {
+        *cos_t = 0.0f;
+        return 1.0f;
+    }
+    *cos_t = sqrt(1.0f - sin2_t);
+    const float rs = (eta * cos_i - *cos_t) / (eta * cos_i + *cos_t);
+    const float rp = (cos_i - eta * *cos_t) / (cos_i + eta * *cos_t);
+    return 0.5f * (rs * rs + rp * rp);
+}
+
+/* Whitted shading, the twin of the CPU's ShaderKind::whitted (render/shade.hpp). */
+void rk_whitted(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surface* s, rk_whitted_params p) {
+    const float3 w = rk_f3(path->weight);
+    if (hit->prim == RK_INVALID) {
+        rk_add_color(ctx, w * rk_f3(ctx->set.background));
+        return;
+    }
+    rk_set_alpha(ctx, 1.0f);
+    const rk_material m = rk_get_material(ctx, s->material);
+    const float opaque = 1.0f - m.transparency;
+    const float3 ks = rk_f3(m.ks), d = s->d;
+    rk_add_color(ctx, w * (rk_f3(m.ke) + opaque * (rk_f3(ctx->set.ambient) * s->base)));
+    const uint nl_count = rk_light_count(ctx);
+    if (nl_count > 0u) {
+        const float3 org = rk_offset_origin(s->p, s->ng);
+        const bool want_spec = rk_max3(ks) > 0.0f;
+        for (uint li = 0; li < nl_count; ++li) {
+            const rk_light l = rk_get_light(ctx, li);
+            float3 ldir;
+            float tmax = INFINITY;
+            if (l.type == 0u) {
+                const float3 to = rk_f3(l.position) - org;
+                const float dist = length(to);
+                if (!(dist > 0.0f)) continue;
+                ldir = to / dist;
+                tmax = dist * (1.0f - 1e-4f);
+            } else {
+                const float ll = length(rk_f3(l.direction));
+                if (!(ll > 0.0f)) continue;
+                ldir = -rk_f3(l.direction) / ll;
+            }
+            const float nl = dot(s->ns, ldir);
+            if (!(nl > 0.0f) || !(dot(s->ng, ldir) > 0.0f)) continue;
+            const float3 lc = rk_f3(l.color);
+            float3 c = opaque * (s->base * (nl * lc));
+            if (want_spec) {
+                const float3 hv = normalize(ldir - d);
+                const float nh = fmax(0.0f, dot(s->ns, hv));
+                c += ks * (pow(nh, m.ns) * lc);
+            }
+            c *= w;
+            if (ctx->set.shadows) rk_emit_shadow(ctx, org, ldir, tmax, c);
+            else rk_add_color(ctx, c);
+        }
+    }
+    if (path->depth >= ctx->set.max_depth) return;
+    const float cos_i = fmax(0.0f, -dot(d, s->ns));
+    float3 refl = rk_f3(m.mirror);
+    if (m.fresnel_mirror && rk_max3(refl) > 0.0f) {
+        const float mm = clamp(1.0f - cos_i, 0.0f, 1.0f);
+        const float m5 = mm * mm * mm * mm * mm;
+        refl = refl + ((float3)(1.0f) - refl) * m5;
+    }
+    float trans = 0.0f;
+    float3 tdir = (float3)(0.0f);
+    if (m.transparency > 0.0f) {
+        const float eta = s->entering ? 1.0f / m.ni : m.ni;
+        float cos_t = 0.0f;
+        const float F = rk_fresnel(cos_i, eta, &cos_t);
+        refl += (float3)(m.transparency * F);
+        if (F < 1.0f) {
+            trans = m.transparency * (1.0f - F);
+            tdir = d * eta + s->ns * (eta * cos_i - cos_t);
+            if (!(dot(tdir, s->ng) < 0.0f)) {
+                const float ci = fmax(0.0f, -dot(d, s->ng));
+                const float s2 = eta * eta * fmax(0.0f, 1.0f - ci * ci);
+                if (s2 < 1.0f) tdir = d * eta + s->ng * (eta * ci - sqrt(1.0f - s2));
+                else trans = 0.0f;
+            }
+        }
+    }
+    const float3 wt = w * trans;
+    if (trans > 0.0f && rk_max3(wt) > ctx->set.min_weight)
+        rk_emit_ray(ctx, rk_offset_origin(s->p, -s->ng), normalize(tdir), wt, 2u);
+    const float3 wr = w * refl;
+    if (rk_max3(wr) > ctx->set.min_weight) {
+        float3 rdir = d - s->ns * (2.0f * dot(d, s->ns));
+        if (!(dot(rdir, s->ng) > 0.0f)) rdir = d - s->ng * (2.0f * dot(d, s->ng));
+        rk_emit_ray(ctx, rk_offset_origin(s->p, s->ng), rdir, wr, 1u);
+    }
+}
+)CLC";
+
+}  // namespace raykit::kernels
