@@ -7,6 +7,7 @@
 #include <random>
 
 #include "raykit.hpp"
+#include "test_support.hpp"
 #include "raykit/scene/generate.hpp"
 #include "raykit/scene/leaf_triangles.hpp"
 
@@ -14,30 +15,7 @@ using namespace raykit;
 
 namespace {
 
-/// Random rays: origins in the box grown by 50 %, directions uniform; half of
-/// them aimed at a triangle vertex or edge midpoint (the hard cases).
-std::vector<Ray> random_rays(const Mesh& m, std::size_t n, std::uint64_t seed) {
-    AABB box;
-    for (const vec3& p : m.positions)
-        if (is_finite(p)) box.grow(p);
-    if (box.is_empty()) box = {vec3(-1), vec3(1)};
-    const vec3 c = box.center(), e = box.extent() * 0.75f + vec3(1e-3f);
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<float> U(-1.0f, 1.0f);
-    std::vector<Ray> rays(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        Ray& r = rays[i];
-        r.org = c + vec3(U(rng), U(rng), U(rng)) * e;
-        if (i % 2 && !m.triangles.empty()) {
-            const Triangle& t = m.triangles[rng() % m.triangles.size()];
-            const vec3 a = m.positions[t.v[0]], b = m.positions[t.v[1]];
-            r.dir = (i % 4 == 1 ? a : (a + b) * 0.5f) - r.org;
-        } else {
-            r.dir = vec3(U(rng), U(rng), U(rng));
-        }
-    }
-    return rays;
-}
+using raykit::test::random_rays;
 
 /// Asserts closest and any-hit queries equal brute force on every ray
 /// (`assert_all` false: only counts and returns the disagreements).

@@ -19,6 +19,8 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "raykit.hpp"
+#include "test_support.hpp"
+#include "test_device_support.hpp"
 #include "raykit/cl.hpp"
 #include "raykit/scene/camera.hpp"
 #include "raykit/scene/generate.hpp"
@@ -27,32 +29,9 @@
 using namespace raykit;
 namespace rcl = raykit::cl;
 
-// Under ASan, LeakSanitizer's exit-time scan reads the dynamic TLS blocks of
-// libraries PoCL loads and unloads at run time (its compiled kernels) and can
-// crash on a stale block ("Tracer caught signal 11", "DTLS ... at 0x..."), so
-// this binary does not scan TLS. Leak checking stays on (tests/lsan.supp).
-extern "C" const char* __lsan_default_options() { return "use_tls=0"; }
-
 namespace {
 
-/// The shared device, or nullptr (with the reason) when OpenCL has no device.
-rcl::Device* test_device(std::string* why) {
-    static std::string reason;
-    static rcl::Device* dev = []() -> rcl::Device* {
-        try {
-            if (rcl::list_devices().empty()) {
-                reason = "an OpenCL platform exists but has no device";
-                return nullptr;
-            }
-        } catch (const rcl::NoDeviceError& e) {
-            reason = e.what();
-            return nullptr;
-        }
-        return &rcl::Device::shared();  // other failures propagate: they are bugs
-    }();
-    if (why) *why = reason;
-    return dev;
-}
+using raykit::test::test_device;
 
 #define RAYKIT_REQUIRE_DEVICE(dev)                                                       \
     std::string no_device_reason_;                                                       \
@@ -66,30 +45,7 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 
 bool same_bits(float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
-/// Random rays as in test_bvh.cpp: origins in the box grown by 50 %, half of
-/// the rays aimed at a triangle vertex or an edge midpoint.
-std::vector<Ray> random_rays(const Mesh& m, std::size_t n, std::uint64_t seed) {
-    AABB box;
-    for (const vec3& p : m.positions)
-        if (is_finite(p)) box.grow(p);
-    if (box.is_empty()) box = {vec3(-1), vec3(1)};
-    const vec3 c = box.center(), e = box.extent() * 0.75f + vec3(1e-3f);
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<float> U(-1.0f, 1.0f);
-    std::vector<Ray> rays(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        Ray& r = rays[i];
-        r.org = c + vec3(U(rng), U(rng), U(rng)) * e;
-        if (i % 2 && !m.triangles.empty()) {
-            const Triangle& t = m.triangles[rng() % m.triangles.size()];
-            const vec3 a = m.positions[t.v[0]], b = m.positions[t.v[1]];
-            r.dir = (i % 4 == 1 ? a : (a + b) * 0.5f) - r.org;
-        } else {
-            r.dir = vec3(U(rng), U(rng), U(rng));
-        }
-    }
-    return rays;
-}
+using raykit::test::random_rays;
 
 /// Rays from outside a closed mesh aimed exactly at vertices, edge midpoints
 /// and edge quarter points (test_bvh.cpp's hard cases).

@@ -19,6 +19,8 @@
 #endif
 #include "../examples/cli_render.hpp"
 #include "raykit.hpp"
+#include "test_support.hpp"
+#include "test_device_support.hpp"
 #include "raykit/cl.hpp"
 #include "raykit/cl/render.hpp"
 #include "raykit/io/obj.hpp"
@@ -32,28 +34,9 @@
 using namespace raykit;
 namespace rcl = raykit::cl;
 
-// See tests/test_cl.cpp: LSan's TLS scan can crash on PoCL's unloaded kernel libraries.
-extern "C" const char* __lsan_default_options() { return "use_tls=0"; }
-
 namespace {
 
-rcl::Device* test_device(std::string* why) {
-    static std::string reason;
-    static rcl::Device* dev = []() -> rcl::Device* {
-        try {
-            if (rcl::list_devices().empty()) {
-                reason = "an OpenCL platform exists but has no device";
-                return nullptr;
-            }
-        } catch (const rcl::NoDeviceError& e) {
-            reason = e.what();
-            return nullptr;
-        }
-        return &rcl::Device::shared();
-    }();
-    if (why) *why = reason;
-    return dev;
-}
+using raykit::test::test_device;
 
 #define RAYKIT_REQUIRE_DEVICE(dev)                                                       \
     std::string no_device_reason_;                                                       \

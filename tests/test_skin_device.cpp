@@ -15,6 +15,8 @@
 #include <vector>
 
 #include "raykit.hpp"
+#include "test_support.hpp"
+#include "test_device_support.hpp"
 #include "raykit/anim/interpolate.hpp"
 #include "raykit/anim/skeleton.hpp"
 #include "raykit/anim/skin_hook.hpp"
@@ -30,32 +32,13 @@
 #include "../examples/cli_skin.hpp"
 #include <sstream>
 
-// See tests/test_cl.cpp: PoCL's run-time loaded kernels confuse LSan's TLS scan.
-extern "C" const char* __lsan_default_options() { return "use_tls=0"; }
-
 namespace {
 
 namespace fs = std::filesystem;
 namespace rcl = raykit::cl;
 using namespace raykit;
 
-rcl::Device* test_device(std::string* why) {
-    static std::string reason;
-    static rcl::Device* dev = []() -> rcl::Device* {
-        try {
-            if (rcl::list_devices().empty()) {
-                reason = "an OpenCL platform exists but has no device";
-                return nullptr;
-            }
-        } catch (const rcl::NoDeviceError& e) {
-            reason = e.what();
-            return nullptr;
-        }
-        return &rcl::Device::shared();
-    }();
-    if (why) *why = reason;
-    return dev;
-}
+using raykit::test::test_device;
 
 #define REQUIRE_DEVICE(dev)                                                       \
     std::string why_;                                                             \
