@@ -14,10 +14,8 @@
 
 #include <vector>
 
-#include "raykit/bvh/traverse.hpp"
-#include "raykit/intersect/triangle.hpp"
-#include "raykit/math/hit.hpp"
 #include "raykit/scene/mesh.hpp"
+#include "raykit/scene/trace.hpp"
 #include "raykit/util/parallel.hpp"
 
 namespace raykit {
@@ -39,49 +37,24 @@ struct LeafTriangles {
     std::size_t memory_bytes() const noexcept { return vertices.size() * sizeof(vec3); }
 };
 
+namespace detail {
+/// Corners of slot k of a leaf-ordered copy: three consecutive vertices.
+struct LeafCorners {
+    const vec3* RAYKIT_RESTRICT v;
+    RAYKIT_INLINE void operator()(std::uint32_t k, const vec3*& a, const vec3*& b, const vec3*& c) const noexcept {
+        a = v + 3 * k, b = a + 1, c = a + 2;
+    }
+};
+}  // namespace detail
+
 template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
 Hit intersect_closest(const LeafTriangles& lt, const Bvh& bvh, const Ray& ray, Stats stats = nullptr) {
-    const typename Test::RayData rd = Test::prepare(ray);
-    const vec3* RAYKIT_RESTRICT v = lt.vertices.data();
-    const std::uint32_t* RAYKIT_RESTRICT ids = bvh.prim_ids.data();
-    Hit hit;
-    float tmax = ray.tmax;
-    traverse<ClosestHit>(
-        bvh, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float& tm) RAYKIT_LAMBDA_INLINE {
-            bool found = false;
-            for (std::uint32_t k = first; k < first + count; ++k) {
-                TriHit th;
-                if (Test::intersect(rd, v[3 * k], v[3 * k + 1], v[3 * k + 2], ray.tmin, tm, th)) {
-                    const std::uint32_t p = ids[k];
-                    if (th.t < hit.t || p < hit.prim) {
-                        hit = {th.t, th.u, th.v, p, 0};
-                        tm = th.t;
-                        found = true;
-                    }
-                }
-            }
-            return found;
-        },
-        stats);
-    return hit;
+    return detail::closest_over_slots<Test>(bvh, ray, detail::LeafCorners{lt.vertices.data()}, stats);
 }
 
 template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
 bool intersect_any(const LeafTriangles& lt, const Bvh& bvh, const Ray& ray, Stats stats = nullptr) {
-    const typename Test::RayData rd = Test::prepare(ray);
-    const vec3* RAYKIT_RESTRICT v = lt.vertices.data();
-    float tmax = ray.tmax;
-    return traverse<AnyHit>(
-        bvh, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float&) RAYKIT_LAMBDA_INLINE {
-            for (std::uint32_t k = first; k < first + count; ++k) {
-                TriHit th;
-                if (Test::intersect(rd, v[3 * k], v[3 * k + 1], v[3 * k + 2], ray.tmin, ray.tmax, th)) return true;
-            }
-            return false;
-        },
-        stats);
+    return detail::any_over_slots<Test>(bvh, ray, detail::LeafCorners{lt.vertices.data()}, stats);
 }
 
 }  // namespace raykit

@@ -16,11 +16,15 @@
 
 namespace raykit {
 
-template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
-Hit intersect_closest(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stats stats = nullptr) {
+namespace detail {
+
+/// Closest hit over a BVH whose leaf slots k yield their triangle's corners
+/// through `corners(k, a, b, c)` (pointers to the three vertices). The
+/// triangle index, prim_ids[k], is read only on a hit (for the tie rule), so
+/// every triangle source — indexed mesh or leaf-ordered copy — shares this loop.
+template <class Test, class Corners, class Stats>
+RAYKIT_INLINE Hit closest_over_slots(const Bvh& bvh, const Ray& ray, Corners&& corners, Stats stats) {
     const typename Test::RayData rd = Test::prepare(ray);
-    const vec3* RAYKIT_RESTRICT pos = mesh.positions.data();
-    const Triangle* RAYKIT_RESTRICT tris = mesh.triangles.data();
     const std::uint32_t* RAYKIT_RESTRICT ids = bvh.prim_ids.data();
     Hit hit;
     float tmax = ray.tmax;
@@ -29,14 +33,16 @@ Hit intersect_closest(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stat
         [&](std::uint32_t first, std::uint32_t count, float& tm) RAYKIT_LAMBDA_INLINE {
             bool found = false;
             for (std::uint32_t k = first; k < first + count; ++k) {
-                const std::uint32_t p = ids[k];
-                const Triangle& t = tris[p];
+                const vec3 *a, *b, *c;
+                corners(k, a, b, c);
                 TriHit th;
-                if (Test::intersect(rd, pos[t.v[0]], pos[t.v[1]], pos[t.v[2]], ray.tmin, tm, th) &&
-                    (th.t < hit.t || p < hit.prim)) {
-                    hit = {th.t, th.u, th.v, p, 0};
-                    tm = th.t;
-                    found = true;
+                if (Test::intersect(rd, *a, *b, *c, ray.tmin, tm, th)) {
+                    const std::uint32_t p = ids[k];
+                    if (th.t < hit.t || p < hit.prim) {
+                        hit = {th.t, th.u, th.v, p, 0};
+                        tm = th.t;
+                        found = true;
+                    }
                 }
             }
             return found;
@@ -45,25 +51,48 @@ Hit intersect_closest(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stat
     return hit;
 }
 
-template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
-bool intersect_any(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stats stats = nullptr) {
+/// Any hit over leaf slots, with corners as in closest_over_slots.
+template <class Test, class Corners, class Stats>
+RAYKIT_INLINE bool any_over_slots(const Bvh& bvh, const Ray& ray, Corners&& corners, Stats stats) {
     const typename Test::RayData rd = Test::prepare(ray);
-    const vec3* RAYKIT_RESTRICT pos = mesh.positions.data();
-    const Triangle* RAYKIT_RESTRICT tris = mesh.triangles.data();
-    const std::uint32_t* RAYKIT_RESTRICT ids = bvh.prim_ids.data();
     float tmax = ray.tmax;
     return traverse<AnyHit>(
         bvh, ray, tmax,
         [&](std::uint32_t first, std::uint32_t count, float&) RAYKIT_LAMBDA_INLINE {
             for (std::uint32_t k = first; k < first + count; ++k) {
-                const Triangle& t = tris[ids[k]];
+                const vec3 *a, *b, *c;
+                corners(k, a, b, c);
                 TriHit th;
-                if (Test::intersect(rd, pos[t.v[0]], pos[t.v[1]], pos[t.v[2]], ray.tmin, ray.tmax, th))
-                    return true;
+                if (Test::intersect(rd, *a, *b, *c, ray.tmin, ray.tmax, th)) return true;
             }
             return false;
         },
         stats);
+}
+
+/// Corners of slot k of an indexed mesh: prim_ids → triangle → positions.
+struct IndexedCorners {
+    const vec3* RAYKIT_RESTRICT pos;
+    const Triangle* RAYKIT_RESTRICT tris;
+    const std::uint32_t* RAYKIT_RESTRICT ids;
+    RAYKIT_INLINE void operator()(std::uint32_t k, const vec3*& a, const vec3*& b, const vec3*& c) const noexcept {
+        const Triangle& t = tris[ids[k]];
+        a = pos + t.v[0], b = pos + t.v[1], c = pos + t.v[2];
+    }
+};
+
+}  // namespace detail
+
+template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
+Hit intersect_closest(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stats stats = nullptr) {
+    return detail::closest_over_slots<Test>(
+        bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
+}
+
+template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
+bool intersect_any(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stats stats = nullptr) {
+    return detail::any_over_slots<Test>(
+        bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
 }
 
 /// Tests every triangle: the oracle for traversal tests.
