@@ -31,6 +31,8 @@
 #include "raykit/bvh/refit.hpp"
 #include "raykit/bvh/rebuild_policy.hpp"
 #include "raykit/bvh/traverse.hpp"
+#include "raykit/bvh/wide.hpp"
+#include "raykit/bvh/traverse_wide.hpp"
 #include "raykit/scene/mesh.hpp"
 #include "raykit/scene/build.hpp"
 #include "raykit/scene/trace.hpp"

@@ -23,11 +23,19 @@ template <class Test = Watertight>
 std::size_t expect_matches_brute_force(const Mesh& m, const Bvh& bvh, const std::vector<Ray>& rays,
                                        bool assert_all = true) {
     std::size_t bad = 0;
+    // the same tree collapsed to 4-wide nodes must give the same answers
+    const WideBvh wide = WideBvh::collapse(bvh);
+    if (assert_all) {
+        EXPECT_EQ(wide.validate(primitive_refs(m).boxes), "");
+    }
     for (std::size_t i = 0; i < rays.size(); ++i) {
         const Hit h = intersect_closest<Test>(m, bvh, rays[i]);
         const Hit o = brute_force_closest<Test>(m, rays[i]);
         const bool any = intersect_any<Test>(m, bvh, rays[i]);
-        if (h.prim != o.prim || h.t != o.t || any != o.valid()) {
+        const Hit w = intersect_closest<Test>(m, wide, rays[i]);
+        const bool wany = intersect_any<Test>(m, wide, rays[i]);
+        if (h.prim != o.prim || h.t != o.t || any != o.valid() || w.prim != o.prim || w.t != o.t || w.u != h.u ||
+            w.v != h.v || wany != any) {
             if (++bad <= 5 && assert_all)
                 ADD_FAILURE() << "ray " << i << " org (" << rays[i].org.x << ", " << rays[i].org.y << ", "
                               << rays[i].org.z << ") dir (" << rays[i].dir.x << ", " << rays[i].dir.y << ", "
@@ -287,11 +295,15 @@ TEST(Bvh, LeafTriangleCopyGivesIdenticalAnswers) {
     const Bvh bvh = build(m);
     LeafTriangles lt(m, bvh);
     EXPECT_EQ(lt.memory_bytes(), m.triangle_count() * 36);
+    const WideBvh wide = WideBvh::collapse(bvh);
     std::size_t bad = 0;
     for (const Ray& r : random_rays(m, 4000, 21)) {
         const Hit a = intersect_closest(m, bvh, r), b = intersect_closest(lt, bvh, r);
+        const Hit w = intersect_closest(lt, wide, r);
         bad += a.prim != b.prim || a.t != b.t || a.u != b.u || a.v != b.v;
+        bad += a.prim != w.prim || a.t != w.t || a.u != w.u || a.v != w.v;
         bad += intersect_any(m, bvh, r) != intersect_any(lt, bvh, r);
+        bad += intersect_any(m, bvh, r) != intersect_any(lt, wide, r);
     }
     EXPECT_EQ(bad, 0u);
     // after moving vertices: refit + update keeps them equal to brute force
@@ -300,10 +312,14 @@ TEST(Bvh, LeafTriangleCopyGivesIdenticalAnswers) {
     Bvh moved = bvh;
     refit(moved, [&](std::uint32_t i) { return view.bounds(i); });
     lt.update(m, moved);
+    const WideBvh wide_moved = WideBvh::collapse(moved);  // collapse again after a refit
     for (const Ray& r : random_rays(m, 1000, 22)) {
         const Hit a = intersect_closest(lt, moved, r), o = brute_force_closest(m, r);
+        const Hit w = intersect_closest(lt, wide_moved, r);
         EXPECT_EQ(a.prim, o.prim);
         EXPECT_EQ(a.t, o.t);
+        EXPECT_EQ(w.prim, o.prim);
+        EXPECT_EQ(w.t, o.t);
     }
 }
 
@@ -356,4 +372,116 @@ TEST(Bvh, RealMeshesMatchBruteForce) {
         ++tested;
     }
     if (tested == 0) GTEST_SKIP() << "shared data not found under " << dir;
+}
+
+TEST(WideBvh, CollapseKeepsLeavesAndHalvesTheVisits) {
+    const Mesh m = make_bumpy_torus(20000);
+    const Bvh bvh = build(m);
+    const WideBvh wide = WideBvh::collapse(bvh);
+    EXPECT_EQ(wide.validate(primitive_refs(m).boxes), "");
+    EXPECT_EQ(wide.prim_ids, bvh.prim_ids);
+    EXPECT_LE(wide.depth(), bvh.depth());
+    EXPECT_LT(wide.nodes.size(), bvh.nodes.size() / 2);
+    // every binary leaf is a wide leaf slot
+    std::size_t bin_leaves = bvh.leaf_count(), wide_leaves = 0;
+    for (const WideNode& n : wide.nodes)
+        for (int c = 0; c < WideNode::kWidth; ++c) wide_leaves += n.is_leaf(c);
+    EXPECT_EQ(wide_leaves, bin_leaves);
+    TraversalStats sb, sw;
+    std::size_t same = 0;
+    const auto rays = random_rays(m, 4000, 17);
+    for (const Ray& r : rays) {
+        const Hit a = intersect_closest(m, bvh, r, &sb);
+        const Hit b = intersect_closest(m, wide, r, &sw);
+        same += a.prim == b.prim && a.t == b.t && a.u == b.u && a.v == b.v;
+    }
+    EXPECT_EQ(same, rays.size());
+    std::printf("[ info ] torus 20k: nodes visited per ray binary %.2f, wide %.2f; leaves %.2f / %.2f\n",
+                double(sb.nodes) / rays.size(), double(sw.nodes) / rays.size(), double(sb.leaves) / rays.size(),
+                double(sw.leaves) / rays.size());
+    EXPECT_LT(sw.nodes * 10, sb.nodes * 7) << "a wide node should replace well over one binary node";
+    // moving collapse takes the primitive order along
+    Bvh copy = bvh;
+    const WideBvh moved = WideBvh::collapse(std::move(copy));
+    EXPECT_EQ(moved.prim_ids, bvh.prim_ids);
+    EXPECT_EQ(moved.nodes.size(), wide.nodes.size());
+}
+
+TEST(WideBvh, EmptyOneTriangleAndLeafRoot) {
+    Mesh empty;
+    const WideBvh e = WideBvh::collapse(build(empty));
+    EXPECT_TRUE(e.empty());
+    EXPECT_FALSE(intersect_closest(empty, e, Ray{{0, 0, -1}, 0.0f, {0, 0, 1}, kInf}).valid());
+    Mesh one;
+    one.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    one.triangles = {{{0, 1, 2}}};
+    const Bvh b1 = build(one);
+    ASSERT_TRUE(b1.nodes[0].is_leaf());
+    const WideBvh w1 = WideBvh::collapse(b1);
+    EXPECT_EQ(w1.validate(primitive_refs(one).boxes), "");
+    const Hit h = intersect_closest(one, w1, Ray{{0.25f, 0.25f, -1.0f}, 0.0f, {0, 0, 1}, kInf});
+    EXPECT_EQ(h.prim, 0u);
+    EXPECT_EQ(h.t, 1.0f);
+    EXPECT_TRUE(intersect_any(one, w1, Ray{{0.25f, 0.25f, -1.0f}, 0.0f, {0, 0, 1}, kInf}));
+    EXPECT_FALSE(intersect_any(one, w1, Ray{{0.75f, 0.75f, -1.0f}, 0.0f, {0, 0, 1}, kInf}));
+}
+
+/// The SSE box test must make the scalar test's decisions, bit for bit, on
+/// the inputs that break slab tests: ±0 and tiny direction components, origins
+/// on a box plane (0·inf = NaN), empty and flat boxes, huge coordinates.
+TEST(WideBvh, SimdBoxTestEqualsScalarOnHardCases) {
+    std::mt19937_64 rng(99);
+    std::uniform_real_distribution<float> U(-2.0f, 2.0f);
+    const float specials[] = {0.0f, -0.0f, 1e-30f, -1e-30f, 1.0f, -1.0f, 1e30f};
+    std::size_t checked = 0, hits = 0;
+    for (int iter = 0; iter < 20000; ++iter) {
+        WideNode n;
+        for (int c = 0; c < WideNode::kWidth; ++c) {
+            AABB b;
+            const vec3 p(U(rng), U(rng), U(rng)), q(U(rng), U(rng), U(rng));
+            b.min = glm::min(p, q);
+            b.max = glm::max(p, q);
+            if (iter % 7 == c) b.max.x = b.min.x;               // flat box
+            if (iter % 11 == c) b = {vec3(1e6f), vec3(1e6f + 1.0f)};  // far away
+            n.set_box(c, b);
+            n.index[c] = 1;
+            n.count[c] = 1;
+            if (iter % 13 == c) n.clear(c);  // unused slot
+        }
+        Ray r;
+        r.org = {U(rng), U(rng), U(rng)};
+        for (int a = 0; a < 3; ++a) {
+            r.dir[a] = (rng() % 4 == 0) ? specials[rng() % 7] : U(rng);
+            if (rng() % 5 == 0) r.org[a] = n.planes[2 * a + (rng() % 2)][rng() % 4];  // on a plane
+        }
+        r.tmin = (rng() % 3 == 0) ? 0.5f : 0.0f;
+        r.tmax = (rng() % 3 == 0) ? 1.5f : kInf;
+        const WideSlabRay wr(r);
+        alignas(16) float ts[4], tv[4];
+        const unsigned ms = wr.test_scalar(n, r.tmin, r.tmax, ts);
+        const unsigned mv = wr.test(n, r.tmin, r.tmax, tv);
+        ASSERT_EQ(ms, mv) << "iteration " << iter;
+        for (int c = 0; c < 4; ++c) {
+            if (ms >> c & 1u) {
+                ASSERT_EQ(ts[c], tv[c]) << "iteration " << iter << " child " << c;
+                ++hits;
+            }
+            if (n.unused(c)) continue;
+            // and the binary tree's slab test decides the same on this box
+            float tb;
+            const AABB box = n.box(c);
+            const bool bh = slab_test(&box.min.x, &box.max.x, r.org, RayInv(r.dir), r.tmin, r.tmax, tb);
+            ASSERT_EQ(bh, bool(ms >> c & 1u)) << "iteration " << iter << " child " << c;
+            if (bh) {
+                ASSERT_EQ(tb, ts[c]);
+            }
+        }
+        for (int c = 0; c < 4; ++c)
+            if (n.unused(c)) {
+                ASSERT_FALSE(ms >> c & 1u) << "an unused slot was entered";
+            }
+        ++checked;
+    }
+    EXPECT_GT(hits, checked / 10);  // the cases are not all misses
+    std::printf("[ info ] %zu boxes entered in %zu 4-wide tests\n", hits, checked);
 }

@@ -2,6 +2,7 @@
 //
 //   LeafTriangles lt(mesh, bvh);                 // 36 bytes per triangle
 //   Hit h = intersect_closest(lt, bvh, ray);     // same answers as (mesh, bvh, ray)
+//   Hit w = intersect_closest(lt, wide, ray);    // a WideBvh collapsed from bvh (same prim_ids)
 //
 // The default trace path reads prim_ids → triangle → three vertex positions:
 // three dependent loads per triangle, scattered in memory. This copy stores
@@ -12,6 +13,7 @@
 // including tie-breaking on the triangle index (looked up only on a hit).
 #pragma once
 
+#include <type_traits>
 #include <vector>
 
 #include "raykit/scene/mesh.hpp"
@@ -24,10 +26,15 @@ struct LeafTriangles {
     std::vector<vec3> vertices;  ///< 3 per prim_ids slot: vertices[3k + c] = corner c of prim_ids[k]
 
     LeafTriangles() = default;
-    LeafTriangles(const MeshView& mesh, const Bvh& bvh, unsigned threads = 0) { update(mesh, bvh, threads); }
+    /// `Tree` is a Bvh or a WideBvh: the copy follows its prim_ids order.
+    template <class Tree>
+    LeafTriangles(const MeshView& mesh, const Tree& bvh, unsigned threads = 0) {
+        update(mesh, bvh, threads);
+    }
 
     /// Re-copies the vertices (after a vertex stage moved them).
-    void update(const MeshView& mesh, const Bvh& bvh, unsigned threads = 0) {
+    template <class Tree>
+    void update(const MeshView& mesh, const Tree& bvh, unsigned threads = 0) {
         vertices.resize(bvh.prim_ids.size() * 3);
         parallel_for(bvh.prim_ids.size(), threads, [&](std::size_t k) {
             const std::uint32_t p = bvh.prim_ids[k];
@@ -47,13 +54,16 @@ struct LeafCorners {
 };
 }  // namespace detail
 
-template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
-Hit intersect_closest(const LeafTriangles& lt, const Bvh& bvh, const Ray& ray, Stats stats = nullptr) {
+/// `Tree` is the Bvh or WideBvh the copy was made for (same prim_ids).
+template <class Test = DefaultTriangleTest, class Tree, class Stats = std::nullptr_t>
+    requires std::is_same_v<Tree, Bvh> || std::is_same_v<Tree, WideBvh>
+Hit intersect_closest(const LeafTriangles& lt, const Tree& bvh, const Ray& ray, Stats stats = nullptr) {
     return detail::closest_over_slots<Test>(bvh, ray, detail::LeafCorners{lt.vertices.data()}, stats);
 }
 
-template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
-bool intersect_any(const LeafTriangles& lt, const Bvh& bvh, const Ray& ray, Stats stats = nullptr) {
+template <class Test = DefaultTriangleTest, class Tree, class Stats = std::nullptr_t>
+    requires std::is_same_v<Tree, Bvh> || std::is_same_v<Tree, WideBvh>
+bool intersect_any(const LeafTriangles& lt, const Tree& bvh, const Ray& ray, Stats stats = nullptr) {
     return detail::any_over_slots<Test>(bvh, ray, detail::LeafCorners{lt.vertices.data()}, stats);
 }
 

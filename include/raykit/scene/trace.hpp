@@ -10,6 +10,7 @@
 #pragma once
 
 #include "raykit/bvh/traverse.hpp"
+#include "raykit/bvh/traverse_wide.hpp"
 #include "raykit/intersect/triangle.hpp"
 #include "raykit/math/hit.hpp"
 #include "raykit/scene/mesh.hpp"
@@ -22,8 +23,8 @@ namespace detail {
 /// through `corners(k, a, b, c)` (pointers to the three vertices). The
 /// triangle index, prim_ids[k], is read only on a hit (for the tie rule), so
 /// every triangle source — indexed mesh or leaf-ordered copy — shares this loop.
-template <class Test, class Corners, class Stats>
-RAYKIT_INLINE Hit closest_over_slots(const Bvh& bvh, const Ray& ray, Corners&& corners, Stats stats) {
+template <class Test, class Tree, class Corners, class Stats>
+RAYKIT_INLINE Hit closest_over_slots(const Tree& bvh, const Ray& ray, Corners&& corners, Stats stats) {
     const typename Test::RayData rd = Test::prepare(ray);
     const std::uint32_t* RAYKIT_RESTRICT ids = bvh.prim_ids.data();
     Hit hit;
@@ -52,8 +53,8 @@ RAYKIT_INLINE Hit closest_over_slots(const Bvh& bvh, const Ray& ray, Corners&& c
 }
 
 /// Any hit over leaf slots, with corners as in closest_over_slots.
-template <class Test, class Corners, class Stats>
-RAYKIT_INLINE bool any_over_slots(const Bvh& bvh, const Ray& ray, Corners&& corners, Stats stats) {
+template <class Test, class Tree, class Corners, class Stats>
+RAYKIT_INLINE bool any_over_slots(const Tree& bvh, const Ray& ray, Corners&& corners, Stats stats) {
     const typename Test::RayData rd = Test::prepare(ray);
     float tmax = ray.tmax;
     return traverse<AnyHit>(
@@ -91,6 +92,20 @@ Hit intersect_closest(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stat
 
 template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
 bool intersect_any(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stats stats = nullptr) {
+    return detail::any_over_slots<Test>(
+        bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
+}
+
+/// The same queries on a WideBvh (bvh/wide.hpp) collapsed from a binary tree:
+/// same answers, faster on the CPU.
+template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
+Hit intersect_closest(const MeshView& mesh, const WideBvh& bvh, const Ray& ray, Stats stats = nullptr) {
+    return detail::closest_over_slots<Test>(
+        bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
+}
+
+template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
+bool intersect_any(const MeshView& mesh, const WideBvh& bvh, const Ray& ray, Stats stats = nullptr) {
     return detail::any_over_slots<Test>(
         bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
 }

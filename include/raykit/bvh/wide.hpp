@@ -1,0 +1,255 @@
+// raykit/bvh/wide.hpp — a 4-wide BVH collapsed from a binary one, for CPU traversal.
+//
+//   Bvh bvh = BinnedSahBuilder::build(boxes, centers);   // any builder
+//   WideBvh wide = WideBvh::collapse(bvh);                // or collapse(std::move(bvh))
+//   Hit h = intersect_closest(mesh, wide, ray);           // scene/trace.hpp
+//
+// The binary Bvh (bvh/node.hpp) stays the canonical tree: every builder makes
+// one, refit updates it, the OpenCL path uploads it. A WideBvh is derived from
+// it in one O(nodes) pass for the CPU's single-ray traversal, where testing
+// four boxes in one SSE operation and walking a tree a third as deep pays:
+// every inner node of the binary tree with inner children is merged with them,
+// the child of largest surface area opened first, until a node has 4 children
+// or only leaves. Leaves are the binary tree's leaves unchanged (same
+// prim_ids ranges), so both trees return the same hits. After a binary refit,
+// collapse again (linear, no SAH work).
+//
+// WideNode is 128 bytes on a 64-byte boundary (two cache lines): the six box
+// planes of the 4 children as structure-of-arrays (lo.x[4], hi.x[4], lo.y[4],
+// ...), then per child an index (a WideNode for inner children, the first
+// prim_ids slot for leaves) and a primitive count (0 = inner child). Unused
+// slots have an empty box (lo = +inf, hi = -inf) that no ray can enter, so the
+// traversal needs no per-slot validity check. The wide tree is no deeper than
+// the binary one, so its stack bound follows from RAYKIT_BVH_MAX_DEPTH.
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <new>
+#include <span>
+#include <string>
+#include <stdexcept>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include "raykit/bvh/node.hpp"
+
+namespace raykit {
+
+struct alignas(64) WideNode {
+    static constexpr int kWidth = 4;
+    /// Planes as [axis*2 + (0 = lo, 1 = hi)][child].
+    float planes[6][kWidth];
+    std::uint32_t index[kWidth];  ///< inner child: WideNode index; leaf: first prim_ids slot
+    std::uint32_t count[kWidth];  ///< 0: inner child (or unused slot); > 0: leaf primitive count
+
+    bool is_leaf(int i) const noexcept { return count[i] != 0; }
+    /// An unused slot: no leaf, no inner child (inner children are never node 0).
+    bool unused(int i) const noexcept { return count[i] == 0 && index[i] == 0; }
+    AABB box(int i) const noexcept {
+        return {{planes[0][i], planes[2][i], planes[4][i]}, {planes[1][i], planes[3][i], planes[5][i]}};
+    }
+    void set_box(int i, const AABB& b) noexcept {
+        for (int a = 0; a < 3; ++a) {
+            planes[2 * a][i] = b.min[a];
+            planes[2 * a + 1][i] = b.max[a];
+        }
+    }
+    void clear(int i) noexcept {
+        for (int a = 0; a < 3; ++a) {
+            planes[2 * a][i] = std::numeric_limits<float>::infinity();
+            planes[2 * a + 1][i] = -std::numeric_limits<float>::infinity();
+        }
+        index[i] = 0;
+        count[i] = 0;
+    }
+};
+static_assert(sizeof(WideNode) == 128 && alignof(WideNode) == 64);
+static_assert(std::is_standard_layout_v<WideNode>);
+static_assert(offsetof(WideNode, planes) == 0 && offsetof(WideNode, index) == 96 && offsetof(WideNode, count) == 112);
+
+/// std::allocator that aligns to 64 bytes (one WideNode starts each cache line pair).
+template <class T>
+struct CacheLineAllocator {
+    using value_type = T;
+    CacheLineAllocator() = default;
+    template <class U>
+    CacheLineAllocator(const CacheLineAllocator<U>&) noexcept {}  // NOLINT implicit
+    T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t(64))); }
+    void deallocate(T* p, std::size_t) noexcept { ::operator delete(p, std::align_val_t(64)); }
+    template <class U>
+    bool operator==(const CacheLineAllocator<U>&) const noexcept {
+        return true;
+    }
+};
+
+struct WideBvh {
+    std::vector<WideNode, CacheLineAllocator<WideNode>> nodes;  ///< node 0 is the root
+    std::vector<std::uint32_t> prim_ids;                        ///< as in the binary tree
+
+    bool empty() const noexcept { return nodes.empty(); }
+    std::size_t memory_bytes() const noexcept {
+        return nodes.size() * sizeof(WideNode) + prim_ids.size() * sizeof(std::uint32_t);
+    }
+
+    /// Collapses a binary tree (copies its prim_ids, 4 bytes per primitive).
+    static WideBvh collapse(const Bvh& bvh) {
+        WideBvh w;
+        w.prim_ids = bvh.prim_ids;
+        w.build_nodes(bvh);
+        return w;
+    }
+    /// Collapses a binary tree that is no longer needed (takes its prim_ids).
+    static WideBvh collapse(Bvh&& bvh) {
+        WideBvh w;
+        w.build_nodes(bvh);
+        w.prim_ids = std::move(bvh.prim_ids);
+        bvh.nodes.clear();
+        return w;
+    }
+
+    /// Depth of the deepest wide node (root = 0).
+    int depth() const {
+        int best = 0;
+        std::vector<int> d(nodes.size(), 0);
+        for (std::size_t i = 0; i < nodes.size(); ++i) {
+            best = std::max(best, d[i]);
+            for (int c = 0; c < WideNode::kWidth; ++c)
+                if (nodes[i].count[c] == 0 && !nodes[i].unused(c)) d[nodes[i].index[c]] = d[i] + 1;
+        }
+        return best;
+    }
+
+    /// Structural check against the primitives' boxes: "" when every prim_ids
+    /// slot is in exactly one leaf, every child box encloses everything below
+    /// it, inner children come after their parent and unused slots are empty;
+    /// otherwise what is wrong first.
+    std::string validate(std::span<const AABB> prim_boxes) const {
+        if (nodes.empty()) return prim_ids.empty() ? "" : "no nodes but primitives";
+        std::vector<std::uint8_t> seen(prim_ids.size(), 0);
+        std::string err;
+        // bounds of everything below slot c of node i, checked against its box
+        const auto below = [&](auto&& self, std::uint32_t i, int c) -> AABB {
+            const WideNode& n = nodes[i];
+            AABB b;
+            if (n.count[c] != 0) {
+                if (std::size_t(n.index[c]) + n.count[c] > prim_ids.size()) {
+                    err = "leaf range out of bounds";
+                    return b;
+                }
+                for (std::uint32_t k = n.index[c]; k < n.index[c] + n.count[c]; ++k) {
+                    if (seen[k]++) err = "prim_ids slot " + std::to_string(k) + " in two leaves";
+                    if (prim_ids[k] >= prim_boxes.size()) {
+                        err = "prim id out of range";
+                        return b;
+                    }
+                    b.grow(prim_boxes[prim_ids[k]]);
+                }
+            } else {
+                if (n.index[c] <= i || n.index[c] >= nodes.size()) {
+                    err = "inner child index " + std::to_string(n.index[c]) + " of node " + std::to_string(i);
+                    return b;
+                }
+                const WideNode& child = nodes[n.index[c]];
+                for (int k = 0; k < WideNode::kWidth && err.empty(); ++k) {
+                    if (child.unused(k)) {
+                        if (!child.box(k).is_empty()) err = "unused slot with a box";
+                        continue;
+                    }
+                    b.grow(self(self, n.index[c], k));
+                }
+            }
+            const AABB box = n.box(c);
+            if (!b.is_empty() && !box.contains(b))
+                err = "box of node " + std::to_string(i) + " slot " + std::to_string(c) + " does not enclose its children";
+            return b;
+        };
+        for (int c = 0; c < WideNode::kWidth && err.empty(); ++c) {
+            const WideNode& root = nodes[0];
+            if (root.unused(c)) {
+                if (!root.box(c).is_empty()) err = "unused slot with a box";
+                continue;
+            }
+            below(below, 0, c);
+        }
+        if (err.empty())
+            for (std::size_t k = 0; k < seen.size(); ++k)
+                if (!seen[k]) return "prim_ids slot " + std::to_string(k) + " in no leaf";
+        return err;
+    }
+
+private:
+    void build_nodes(const Bvh& bvh) {
+        nodes.clear();
+        if (bvh.nodes.empty()) return;
+        const std::size_t n = bvh.nodes.size();
+        nodes.reserve(n / 2 + 1);
+        const auto check = [&](std::uint32_t i) {
+            if (i >= n) throw std::invalid_argument("WideBvh::collapse: child index out of range");
+        };
+        struct Task {
+            std::uint32_t binary;  // binary inner node whose subtree becomes wide node `wide`
+            std::uint32_t wide;
+        };
+        std::vector<Task> todo;
+        nodes.emplace_back();
+        const Node& root = bvh.nodes[0];
+        if (root.is_leaf()) {
+            for (int c = 0; c < WideNode::kWidth; ++c) nodes[0].clear(c);
+            nodes[0].set_box(0, root.box);
+            nodes[0].index[0] = root.index;
+            nodes[0].count[0] = root.count;
+            return;
+        }
+        todo.push_back({0, 0});
+        while (!todo.empty()) {
+            const Task task = todo.back();
+            todo.pop_back();
+            // open the children of largest area until 4 or only leaves
+            std::uint32_t kids[WideNode::kWidth];
+            int k = 0;
+            const Node& b = bvh.nodes[task.binary];
+            check(b.index + 1);
+            kids[k++] = b.index;
+            kids[k++] = b.index + 1;
+            while (k < WideNode::kWidth) {
+                int best = -1;
+                float best_area = -1.0f;
+                for (int i = 0; i < k; ++i) {
+                    const Node& c = bvh.nodes[kids[i]];
+                    if (c.is_leaf()) continue;
+                    const float a = c.box.half_area();
+                    if (best < 0 || a > best_area) best = i, best_area = a;
+                }
+                if (best < 0) break;
+                const Node& c = bvh.nodes[kids[best]];
+                check(c.index + 1);
+                kids[best] = c.index;  // keep the binary order: left replaces the parent, right goes after it
+                for (int i = k; i > best + 1; --i) kids[i] = kids[i - 1];
+                kids[best + 1] = c.index + 1;
+                ++k;
+            }
+            WideNode out;
+            for (int c = 0; c < WideNode::kWidth; ++c) out.clear(c);
+            for (int i = 0; i < k; ++i) {
+                const Node& c = bvh.nodes[kids[i]];
+                out.set_box(i, c.box);
+                if (c.is_leaf()) {
+                    out.index[i] = c.index;
+                    out.count[i] = c.count;
+                } else {
+                    out.index[i] = static_cast<std::uint32_t>(nodes.size());
+                    out.count[i] = 0;
+                    nodes.emplace_back();
+                    todo.push_back({kids[i], out.index[i]});
+                }
+            }
+            nodes[task.wide] = out;
+        }
+    }
+};
+
+}  // namespace raykit
