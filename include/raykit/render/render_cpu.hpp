@@ -15,7 +15,9 @@
 // N-rooks (one sample per row and per column of an spp x spp grid, columns shuffled per pixel),
 // each jittered uniformly inside its cell (RenderSettings::jitter = false puts every sample at
 // its cell centre, so spp = 1 samples the pixel centre). The pixel value is the mean of its
-// samples (box filter); alpha is the fraction of samples whose camera ray hit geometry.
+// samples (box filter: sum · (1 / spp)); alpha is the fraction of samples whose camera ray hit
+// geometry. The exact definition is PixelSampler's (below); the device renderer's camera
+// kernel (cl/render.hpp) computes the same sample positions and generator states.
 //
 // Determinism: every random number of sample s of pixel i comes from a generator seeded with
 // hash_seed(seed, i, s), and per-row counters are summed in row order, so the image and the
@@ -25,8 +27,8 @@
 // all hardware threads). Each worker keeps one PathScratch (a growable stack of pending rays),
 // so memory does not grow with spp or depth beyond what one path needs.
 //
-// debug_cost: pixels hold the mean traversal steps; after rendering they are mapped to a
-// heat-map colour (blue, cyan, green, yellow, red) with `cost_scale` steps (or the frame's
+// debug_cost: pixels hold the mean traversal steps; after rendering cost_heat_map maps them to
+// a heat-map colour (blue, cyan, green, yellow, red) with `cost_scale` steps (or the frame's
 // maximum when 0) at the red end.
 //
 // Statistics (RenderStats): rays traced per kind, and wall time per stage: setup (camera
@@ -34,6 +36,8 @@
 // time of the render stage is further split into trace (closest-hit), shadow (any-hit) and
 // shade (everything else, camera rays included), timed with stage_ticks() (the x86 time-stamp
 // counter, calibrated against steady_clock over the frame); the reads cost a few percent.
+// Rays per bounce (bounce_rays) are always counted; their traversal thread time
+// (bounce_thread_ms: closest- and any-hit queries of that bounce) only with time_stages.
 #pragma once
 
 #include <algorithm>
@@ -72,12 +76,14 @@ struct RenderSettings {
 
 struct RenderStats {
     RayCounts rays;
+    std::uint64_t bounce_rays[kBounceSlots] = {};  ///< rays traced per bounce slot (shade.hpp)
     std::uint64_t traversal_steps = 0;  ///< debug_cost: camera-ray traversal steps
     unsigned deepest = 0;               ///< deepest bounce traced
     unsigned threads = 1;               ///< workers used
     double setup_ms = 0.0, render_ms = 0.0, resolve_ms = 0.0, total_ms = 0.0;  ///< wall time
     // time_stages only: thread time summed over all workers
     double trace_thread_ms = 0.0, shadow_thread_ms = 0.0, shade_thread_ms = 0.0;
+    double bounce_thread_ms[kBounceSlots] = {};  ///< traversal thread time per bounce slot
 
     /// Rays traced per second during the render stage, in millions.
     double mrays_per_second() const noexcept {
@@ -99,6 +105,74 @@ inline vec3 heat_color(float t) noexcept {
 
 }  // namespace detail
 
+/// Maps the debug_cost pixels (mean traversal steps in .x) to heat-map colours in place: `scale`
+/// steps (the image's largest value when scale <= 0) are red, 0 is blue; the colours are
+/// stored linear (decoded from sRGB), alpha is kept. Used by render_cpu and the device renderer.
+inline void cost_heat_map(Image& img, float scale) {
+    if (!(scale > 0.0f)) {
+        scale = 0.0f;
+        for (const vec4& p : img.pixels) scale = std::max(scale, p.x);
+    }
+    for (vec4& p : img.pixels) {
+        const vec3 c = detail::heat_color(scale > 0.0f ? p.x / scale : 0.0f);
+        p = vec4(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z), p.w);
+    }
+}
+
+/// Where the samples of a pixel lie: the one definition of the stratified sampling, shared by
+/// render_cpu and the device renderer's camera kernel (rk_dr_camera, kernels/raykit/kernels/
+/// shade.hpp), which evaluates the same integer and float operations:
+///   m = floor(sqrt(spp)); grid = (m · m == spp); inv_m = 1 / float(m); inv_spp = 1 / float(spp)
+///   sample s of pixel i (i = y · width + x) draws from rng = SampleRng(hash_seed(seed, i, s)):
+///   r1 = rng.next_float(), r2 = rng.next_float() with jitter, else r1 = r2 = 0.5 and nothing is
+///   drawn; the sample's shading (ao) continues with that rng.
+///   grid:    (jx, jy) = ((s mod m + r1) · inv_m, (s div m + r2) · inv_m)
+///   N-rooks: (jx, jy) = ((s + r1) · inv_spp, (col[s] + r2) · inv_spp), col a permutation of
+///            0 .. spp-1 per pixel: col = identity, then for k = spp-1 down to 1:
+///            swap(col[k], col[u % (k + 1)]), u the successive next_u64() of
+///            SampleRng(hash_seed(seed, i, ~0)).
+///   The camera ray is CameraFrame::ray(x, y, jx, jy).
+class PixelSampler {
+public:
+    PixelSampler(unsigned spp, std::uint64_t seed, bool jitter)
+        : spp_(spp), m_(static_cast<unsigned>(std::sqrt(double(spp)))), seed_(seed), jitter_(jitter) {
+        if (spp == 0) throw std::invalid_argument("raykit::PixelSampler: spp must be at least 1");
+        grid_ = m_ * m_ == spp_;
+        inv_m_ = 1.0f / float(m_);
+        inv_spp_ = 1.0f / float(spp_);
+    }
+    /// Prepares pixel i (the N-rooks column shuffle); call before sample() for that pixel.
+    void begin_pixel(std::uint64_t pixel) {
+        pixel_ = pixel;
+        if (grid_) return;
+        perm_.resize(spp_);
+        std::iota(perm_.begin(), perm_.end(), 0u);
+        SampleRng pr(hash_seed(seed_, pixel, ~std::uint64_t(0)));
+        for (unsigned i = spp_ - 1; i > 0; --i) std::swap(perm_[i], perm_[pr.next_u64() % (i + 1)]);
+    }
+    /// Position (jx, jy) in [0, 1)² of sample s of the current pixel; `rng` receives the sample's
+    /// generator, advanced past the jitter.
+    vec2 sample(unsigned s, SampleRng& rng) const noexcept {
+        rng = SampleRng(hash_seed(seed_, pixel_, s));
+        const float r1 = jitter_ ? rng.next_float() : 0.5f;
+        const float r2 = jitter_ ? rng.next_float() : 0.5f;
+        if (grid_) return vec2((float(s % m_) + r1) * inv_m_, (float(s / m_) + r2) * inv_m_);
+        return vec2((float(s) + r1) * inv_spp_, (float(perm_[s]) + r2) * inv_spp_);
+    }
+    unsigned spp() const noexcept { return spp_; }
+    unsigned grid_side() const noexcept { return grid_ ? m_ : 0u; }  ///< m, or 0 for N-rooks
+    float inv_grid_side() const noexcept { return inv_m_; }
+    float inv_spp() const noexcept { return inv_spp_; }
+
+private:
+    unsigned spp_, m_;
+    std::uint64_t seed_;
+    bool jitter_, grid_ = true;
+    float inv_m_ = 1.0f, inv_spp_ = 1.0f;
+    std::uint64_t pixel_ = 0;
+    std::vector<std::uint32_t> perm_;
+};
+
 /// Renders `scene` through `cam` (see the header comment). Throws std::invalid_argument for
 /// spp == 0 or an invalid camera (Camera::frame()); exceptions from workers are rethrown.
 inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const RenderSettings& set,
@@ -115,8 +189,6 @@ inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const Render
     const std::uint32_t W = frame.width, H = frame.height;
     Image img(W, H, vec4(0.0f));
     const unsigned spp = set.spp;
-    const auto m = static_cast<unsigned>(std::sqrt(double(spp)));
-    const bool grid = m * m == spp;
     const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(resolve_threads(set.threads), H));
     std::vector<ShadeCounters> row_counters(H);
     std::vector<std::uint64_t> row_ticks(set.time_stages ? H : 0, 0);
@@ -130,35 +202,20 @@ inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const Render
     const float inv_spp = 1.0f / float(spp);
     parallel_chunks(H, H, threads, [&](std::size_t, std::size_t y0, std::size_t y1) {
         PathScratch scratch;
-        std::vector<std::uint32_t> perm;
+        PixelSampler sampler(spp, set.seed, set.jitter);
         for (std::size_t yy = y0; yy < y1; ++yy) {
             const auto y = static_cast<std::uint32_t>(yy);
             const std::uint64_t t_row = set.time_stages ? stage_ticks() : 0;
             ShadeCounters& cnt = row_counters[y];
             cnt.time_stages = set.time_stages;
             for (std::uint32_t x = 0; x < W; ++x) {
-                const std::uint64_t pixel = std::uint64_t(y) * W + x;
-                if (!grid) {  // N-rooks: shuffle the columns of this pixel's strata
-                    perm.resize(spp);
-                    std::iota(perm.begin(), perm.end(), 0u);
-                    SampleRng pr(hash_seed(set.seed, pixel, ~std::uint64_t(0)));
-                    for (unsigned i = spp - 1; i > 0; --i) std::swap(perm[i], perm[pr.next_u64() % (i + 1)]);
-                }
+                sampler.begin_pixel(std::uint64_t(y) * W + x);
                 vec3 sum(0.0f);
                 float cover = 0.0f;
                 for (unsigned s = 0; s < spp; ++s) {
-                    SampleRng rng(hash_seed(set.seed, pixel, s));
-                    const float r1 = set.jitter ? rng.next_float() : 0.5f;
-                    const float r2 = set.jitter ? rng.next_float() : 0.5f;
-                    float jx, jy;
-                    if (grid) {
-                        jx = (float(s % m) + r1) / float(m);
-                        jy = (float(s / m) + r2) / float(m);
-                    } else {
-                        jx = (float(s) + r1) * inv_spp;
-                        jy = (float(perm[s]) + r2) * inv_spp;
-                    }
-                    const Ray ray = frame.ray(x, y, jx, jy);
+                    SampleRng rng;
+                    const vec2 j = sampler.sample(s, rng);
+                    const Ray ray = frame.ray(x, y, j.x, j.y);
                     const SampleResult r = shade_ray(scene, set.shade, ray, rng, cnt, scratch);
                     sum += r.color;
                     cover += r.alpha;
@@ -178,17 +235,7 @@ inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const Render
 
     // ---- resolve
     const auto t_resolve = Clock::now();
-    if (set.shade.shader == ShaderKind::debug_cost) {
-        float scale = set.cost_scale;
-        if (!(scale > 0.0f)) {
-            scale = 0.0f;
-            for (const vec4& p : img.pixels) scale = std::max(scale, p.x);
-        }
-        for (vec4& p : img.pixels) {
-            const vec3 c = detail::heat_color(scale > 0.0f ? p.x / scale : 0.0f);
-            p = vec4(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z), p.w);
-        }
-    }
+    if (set.shade.shader == ShaderKind::debug_cost) cost_heat_map(img, set.cost_scale);
     const double resolve_ms = ms_since(t_resolve);
 
     if (stats) {
@@ -196,6 +243,7 @@ inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const Render
         ShadeCounters total;
         for (const ShadeCounters& c : row_counters) total += c;
         st.rays = total.rays;
+        for (unsigned i = 0; i < kBounceSlots; ++i) st.bounce_rays[i] = total.bounce_rays[i];
         st.traversal_steps = total.traversal_steps;
         st.deepest = total.deepest;
         st.threads = threads;
@@ -210,6 +258,8 @@ inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const Render
             st.trace_thread_ms = double(total.times.trace_ticks) * ms_per_tick;
             st.shadow_thread_ms = double(total.times.shadow_ticks) * ms_per_tick;
             st.shade_thread_ms = std::max(0.0, double(all) * ms_per_tick - st.trace_thread_ms - st.shadow_thread_ms);
+            for (unsigned i = 0; i < kBounceSlots; ++i)
+                st.bounce_thread_ms[i] = double(total.times.bounce_ticks[i]) * ms_per_tick;
         }
         *stats = st;
     }

@@ -35,9 +35,17 @@
 //                        distance from the ray origin to the farthest corner of the scene bounds).
 //  ao ("ao")             ambient occlusion: the fraction of ao_samples cosine-weighted rays from
 //                        the first hit that escape within ao_radius (default 0.1 · scene diagonal).
+//                        Ray i takes the next two numbers u1, u2 of the sample's generator (`rng`,
+//                        after the camera's jitter, see PixelSampler in render_cpu.hpp):
+//                        dir = T·(√u1 cos φ) + B·(√u1 sin φ) + N·√(1 - u1), φ = 2π·u2, (T, B) =
+//                        basis(N) around the shading normal N; a dir not above the geometric
+//                        surface counts as occluded and is not traced. Origin offset along the
+//                        geometric normal, tmin 0, tmax ao_radius. The device hook (cl/render.hpp)
+//                        draws the same numbers in the same order.
 //  debug_cost ("debug-cost")  r.cost = inner nodes + leaves visited by the camera ray's traversal
-//                        (TraversalStats); r.color = (cost, cost, cost), to be mapped by the caller
-//                        (render_cpu maps it to a heat-map colour).
+//                        (TraversalStats of bvh/traverse.hpp: the root counts when its box is hit,
+//                        alpha cut-outs are skipped inside the walk); r.color = (cost, cost, cost),
+//                        to be mapped by the caller (render_cpu maps it with cost_heat_map).
 // Misses give ShadeSettings::background (and alpha 0 for a camera ray).
 //
 // Geometry
@@ -144,13 +152,22 @@ inline std::uint64_t stage_ticks() noexcept {
 #endif
 }
 
+/// Per-bounce statistics keep this many slots: bounces 0, 1, 2 and "3 or deeper" (bounce 0 =
+/// the camera ray and the shadow / ambient-occlusion rays from its hit; bounce k = the
+/// reflection and refraction rays of depth k and the shadow rays from their hits).
+inline constexpr unsigned kBounceSlots = 4;
+/// The slot of bounce `depth`.
+constexpr unsigned bounce_slot(unsigned depth) noexcept { return depth < kBounceSlots ? depth : kBounceSlots - 1; }
+
 /// Thread time spent in the traversals, in stage_ticks() units (filled only when
 /// ShadeCounters::time_stages is set).
 struct StageTimes {
     std::uint64_t trace_ticks = 0;   ///< closest-hit queries (camera, reflection, refraction rays)
     std::uint64_t shadow_ticks = 0;  ///< any-hit queries (shadow and ambient-occlusion rays)
+    std::uint64_t bounce_ticks[kBounceSlots] = {};  ///< closest- and any-hit queries per bounce slot
     StageTimes& operator+=(const StageTimes& o) noexcept {
         trace_ticks += o.trace_ticks, shadow_ticks += o.shadow_ticks;
+        for (unsigned i = 0; i < kBounceSlots; ++i) bounce_ticks[i] += o.bounce_ticks[i];
         return *this;
     }
 };
@@ -158,12 +175,14 @@ struct StageTimes {
 /// What shade_ray adds to as it works (one per thread; merge with +=).
 struct ShadeCounters {
     RayCounts rays;
+    std::uint64_t bounce_rays[kBounceSlots] = {};  ///< rays traced (all kinds) per bounce slot
     std::uint64_t traversal_steps = 0;  ///< debug_cost only: inner nodes + leaves of camera rays
     unsigned deepest = 0;               ///< largest bounce depth reached by a traced ray
     bool time_stages = false;           ///< measure StageTimes (two stage_ticks() reads per query)
     StageTimes times;
     ShadeCounters& operator+=(const ShadeCounters& o) noexcept {
         rays += o.rays;
+        for (unsigned i = 0; i < kBounceSlots; ++i) bounce_rays[i] += o.bounce_rays[i];
         traversal_steps += o.traversal_steps;
         deepest = std::max(deepest, o.deepest);
         times += o.times;
@@ -353,13 +372,15 @@ struct Tracer {
     }
 };
 
-/// Times a callable into `ticks` (stage_ticks units) when `on`.
+/// Times a callable into `ticks` and `bounce_ticks` (stage_ticks units) when `on`.
 template <class F>
-RAYKIT_INLINE auto timed(bool on, std::uint64_t& ticks, F&& f) {
+RAYKIT_INLINE auto timed(bool on, std::uint64_t& ticks, std::uint64_t& bounce_ticks, F&& f) {
     if (!on) return f();
     const std::uint64_t t0 = stage_ticks();
     auto r = f();
-    ticks += stage_ticks() - t0;
+    const std::uint64_t dt = stage_ticks() - t0;
+    ticks += dt;
+    bounce_ticks += dt;
     return r;
 }
 
@@ -438,20 +459,22 @@ SampleResult shade_impl(const ShadeScene& s, const ShadeSettings& set, const Ray
     SampleResult res;
     res.color = set.background;
     ++cnt.rays.primary;
+    ++cnt.bounce_rays[0];
+    std::uint64_t& ticks0 = cnt.times.bounce_ticks[0];
 
     // ---- first-hit shaders
     if (set.shader != ShaderKind::whitted) {
         Hit h;
         if (set.shader == ShaderKind::debug_cost) {
             TraversalStats st;
-            h = timed(tm, cnt.times.trace_ticks, [&] { return tr.closest(camera_ray, &st); });
+            h = timed(tm, cnt.times.trace_ticks, ticks0, [&] { return tr.closest(camera_ray, &st); });
             res.cost = float(st.nodes + st.leaves);
             cnt.traversal_steps += st.nodes + st.leaves;
             res.color = vec3(res.cost);
             res.alpha = h.valid() ? 1.0f : 0.0f;
             return res;
         }
-        h = timed(tm, cnt.times.trace_ticks, [&] { return tr.closest(camera_ray); });
+        h = timed(tm, cnt.times.trace_ticks, ticks0, [&] { return tr.closest(camera_ray); });
         if (!h.valid()) return res;
         res.alpha = 1.0f;
         const float dl = glm::length(camera_ray.dir);
@@ -486,8 +509,9 @@ SampleResult shade_impl(const ShadeScene& s, const ShadeSettings& set, const Ray
                 const vec3 dir = tb * (r * std::cos(phi)) + bb * (r * std::sin(phi)) + sp.ns * std::sqrt(1.0f - u1);
                 if (!(glm::dot(dir, sp.ng) > 0.0f)) continue;  // below the geometric surface: occluded
                 ++cnt.rays.ao;
+                ++cnt.bounce_rays[0];
                 const Ray ar{org, 0.0f, dir, radius};
-                if (!timed(tm, cnt.times.shadow_ticks, [&] { return tr.any(ar); })) ++open;
+                if (!timed(tm, cnt.times.shadow_ticks, ticks0, [&] { return tr.any(ar); })) ++open;
             }
             res.color = vec3(set.ao_samples ? float(open) / float(set.ao_samples) : 1.0f);
         }
@@ -505,8 +529,11 @@ SampleResult shade_impl(const ShadeScene& s, const ShadeSettings& set, const Ray
         stack.pop_back();
         if (it.kind == Kind::reflection) ++cnt.rays.reflection;
         if (it.kind == Kind::refraction) ++cnt.rays.refraction;
+        const unsigned slot = bounce_slot(it.depth);
+        if (it.kind != Kind::primary) ++cnt.bounce_rays[slot];
+        std::uint64_t& bticks = cnt.times.bounce_ticks[slot];
         cnt.deepest = std::max(cnt.deepest, it.depth);
-        const Hit h = timed(tm, cnt.times.trace_ticks, [&] { return tr.closest(it.ray); });
+        const Hit h = timed(tm, cnt.times.trace_ticks, bticks, [&] { return tr.closest(it.ray); });
         if (!h.valid()) {
             L += it.weight * set.background;
             continue;
@@ -540,8 +567,9 @@ SampleResult shade_impl(const ShadeScene& s, const ShadeSettings& set, const Ray
                 if (!(nl > 0.0f) || !(glm::dot(sp.ng, ldir) > 0.0f)) continue;
                 if (set.shadows) {
                     ++cnt.rays.shadow;
+                    ++cnt.bounce_rays[slot];
                     const Ray sr{org, 0.0f, ldir, tmax};
-                    if (timed(tm, cnt.times.shadow_ticks, [&] { return tr.any(sr); })) continue;
+                    if (timed(tm, cnt.times.shadow_ticks, bticks, [&] { return tr.any(sr); })) continue;
                 }
                 diffuse += sp.base * (nl * l.color);
                 if (want_spec) {
