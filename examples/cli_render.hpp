@@ -13,8 +13,9 @@
 //       should print raykit_cli_render_usage() and exit with status 2 — and other
 //       std::exceptions (raykit::ParseError, std::runtime_error, ...) for everything else,
 //       e.g. "--device cl: ... not available yet" in builds without OpenCL (RAYKIT_CLI_HAVE_CL).
-//       --device cl renders on the OpenCL device (raykit/cl/render.hpp: 1 spp at pixel centres,
-//       whitted, normals, depth) and reports the second frame's time (the first builds kernels).
+//       --device cl renders on the OpenCL device (raykit/cl/render.hpp: every shader, --spp N with
+//       the CPU's sample positions, so the image equals the CPU's) and reports the second frame's
+//       time (the first builds kernels); --threads and --profile apply to the CPU only.
 //   const char* raykit_cli_render_usage();
 //
 // Defaults: no --camera frames the whole scene (bounding-sphere fit, looking from front-right-
@@ -77,7 +78,7 @@ inline const char* raykit_cli_render_usage() {
   --seed S                  random seed (default 0)
   --no-jitter               samples at stratum centres (1 spp = pixel centres)
   --threads T               worker threads, 0 = all (default 0)
-  --device cpu|cl           renderer (default cpu; cl: OpenCL device, 1 spp, whitted/normals/depth)
+  --device cpu|cl           renderer (default cpu; cl: the OpenCL device, same image as the CPU)
   --builder NAME            BVH builder: sah (default), pairwise, sortaxis, ploc
   --leaf-size N             largest BVH leaf (default 8)
   --no-leaf-triangles       trace through the index triangles instead of the leaf-order copy
@@ -290,22 +291,23 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
     if (rs.lights.empty()) rs.lights.push_back(default_key_light(cam));
 
 #if defined(RAYKIT_CLI_HAVE_CL)
-    // ---- render on the OpenCL device (raykit/cl/render.hpp): one sample per pixel through the
-    // pixel centre, shaders normals, depth, whitted. A first frame builds the program and lets
-    // PoCL compile its kernels; the second frame is the one timed ("frame").
+    // ---- render on the OpenCL device (raykit/cl/render.hpp): the same shaders and samples as the
+    // CPU. A first frame (one sample per pixel) builds the program and lets PoCL compile its
+    // kernels; the full frame after it is the one timed ("frame").
     if (device == "cl") {
-        if (set.spp != 1) throw RaykitCliRenderUsageError("--device cl renders 1 sample per pixel (use --spp 1)");
-        if (set.shade.shader != ShaderKind::whitted && set.shade.shader != ShaderKind::normals &&
-            set.shade.shader != ShaderKind::depth)
-            throw RaykitCliRenderUsageError(std::string("--device cl: shader '") + shader_name(set.shade.shader) +
-                                            "' is not available on the device (whitted, normals, depth)");
         raykit::cl::Device& dev = raykit::cl::Device::shared();
         auto tu = Clock::now();
         raykit::cl::DeviceRenderer renderer(dev, rs.view());
         const double upload_ms = ms_since(tu);
         raykit::cl::DeviceRenderStats first, st;
-        (void)renderer.render(cam, set.shade, &first);
-        const Image img = renderer.render(cam, set.shade, &st);
+        RenderSettings warm = set;
+        warm.spp = 1;
+        (void)renderer.render(cam, warm, &first);
+        cr::ProgressBar bar;
+        bar.enabled = !quiet && cr::ProgressBar::stderr_is_terminal();
+        set.progress = [&bar](std::size_t done, std::size_t total) { bar.update(done, total); };
+        const Image img = renderer.render(cam, set, &st);
+        bar.finish();
         t0 = Clock::now();
         const std::filesystem::path out = p.pos[1];
         PngOptions po;
@@ -315,14 +317,16 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
         if (auto* v = p.last("--pfm")) write_pfm(img, (*v)[0]);
         const double write_ms = ms_since(t0);
         if (!quiet)
-            std::printf("raykit render: %ux%u, 1 spp, %s, device %s: %llu rays (primary %llu, shadow %llu, "
+            std::printf("raykit render: %ux%u, %u spp, %s, device %s: %llu rays (primary %llu, shadow %llu, "
                         "continuation %llu), %u bounces, peak queue %zu rays, %.2f Mrays/s; ms: load %.1f, build %.1f, "
-                        "materials %.1f, upload %.1f, first frame %.1f, frame %.1f, write %.1f\n",
-                        width, height, shader_name(set.shade.shader), dev.info().name.c_str(),
+                        "materials %.1f, upload %.1f, first frame %.1f, frame %.1f (device: camera %.1f, trace %.1f, "
+                        "shade %.1f, shadow %.1f; resolve %.1f), write %.1f\n",
+                        width, height, set.spp, shader_name(set.shade.shader), dev.info().name.c_str(),
                         (unsigned long long)st.total(), (unsigned long long)st.primary,
                         (unsigned long long)st.shadow, (unsigned long long)st.continuation, st.bounces, st.peak_queue,
                         st.render_ms > 0.0 ? double(st.total()) / (st.render_ms * 1e3) : 0.0, load_ms, rs.build_ms,
-                        rs.materials_ms, upload_ms, first.render_ms, st.render_ms, write_ms);
+                        rs.materials_ms, upload_ms, first.render_ms, st.render_ms, st.camera_ms, st.trace_ms,
+                        st.shade_ms, st.shadow_ms, st.resolve_ms, write_ms);
         return 0;
     }
 #endif

@@ -4,17 +4,24 @@
 // ---------
 //   raykit::cl::DeviceRenderer r(raykit::cl::Device::shared(), rs.view());   // uploads mesh, tree,
 //                                                                           // materials, textures, lights
-//   Image img = r.render(cam, shade_settings);                 // built-in shader by ShadeSettings::shader
-//   Image img = r.render_hook<MyHook>(cam, shade_settings, params);   // a user ray hook
+//   RenderSettings set;  set.spp = 4;  set.shade.shader = ShaderKind::ao;
+//   Image img = r.render(cam, set);                            // built-in shader by set.shade.shader
+//   Image img = r.render(cam, shade_settings);                 // 1 sample at each pixel centre
+//   Image img = r.render_hook<MyHook>(cam, set, params);       // a user ray hook
 //   r.set_lights(lights);                                      // replaces the lights
 //
-// One sample per pixel through the pixel centre: the image equals render_cpu with spp = 1 and
-// jitter = false (same camera rays bit for bit, same triangle test, same shading formulas; the
-// colours differ only in the last bits: float atomics add in any order, OpenCL's pow/normalize
-// are not correctly rounded). Built-in shaders: normals, depth, whitted (ShaderKind); ao and
-// debug_cost throw std::invalid_argument. Alpha cut-outs (map_Kd alpha < 0.5) are skipped inside
-// the closest-hit and shadow traversals as on the CPU, when the scene has any (a separate
-// traversal, so scenes without them pay nothing). Not on the device yet: spp > 1.
+// The image equals render_cpu's for the same RenderSettings (render(cam, ShadeSettings) is
+// spp = 1, jitter = false): the same camera rays bit for bit (raykit::PixelSampler's sample
+// positions and generator states, CameraFrame::ray), the same triangle test and traversal
+// order, the same random numbers (ao), the same traversal step counts (debug-cost), the same
+// shading formulas; colours differ only in the last bits (float atomics add in any order;
+// OpenCL's pow, normalize, sin and cos are not correctly rounded). Built-in shaders: all of
+// ShaderKind — normals, depth, whitted, ao, debug_cost (the traversal steps are mapped to the
+// heat map on the host with cost_heat_map and RenderSettings::cost_scale, as render_cpu does).
+// Alpha cut-outs (map_Kd alpha < 0.5) are skipped inside the closest-hit and shadow traversals
+// as on the CPU, when the scene has any (a separate traversal, so scenes without them pay
+// nothing). RenderSettings::threads and time_stages mean nothing here; progress is called after
+// each sample pass with (passes done, spp).
 //
 // Ray hooks
 // ---------
@@ -33,8 +40,12 @@
 //   };
 //
 // The hook is called once per traced ray (hit or miss) of every bounce; the API it may call
-// (rk_add_color, rk_set_alpha, rk_emit_shadow, rk_emit_ray, rk_get_material,
-// rk_texture_sample, rk_offset_origin, lights) is documented in kernels/raykit/kernels/shade.hpp.
+// (rk_add_color, rk_set_alpha, rk_emit_shadow, rk_emit_ray, rk_random, rk_traversal_steps,
+// rk_get_material, rk_texture_sample, rk_offset_origin, lights) is documented in
+// kernels/raykit/kernels/shade.hpp. max_shadow_rays may be a number, kPerLight (one per light of
+// the scene) or kPerAoSample (ShadeSettings::ao_samples). A hook that declares
+// `static constexpr bool traversal_steps = true;` gets the step count of each ray's closest-hit
+// walk (rk_traversal_steps); its program is built with RK_DR_STEPS, so the others pay nothing.
 // NAME_params must have the size of Params (checked when compiling: a mismatch is a build error
 // naming the hook). Only hooks that are rendered with are compiled, each into its own program
 // (cached per process, see cl/program.hpp); compiler messages about the hook name
@@ -43,14 +54,19 @@
 //
 // Wavefront and memory
 // --------------------
-// Rays live in per-bounce queues on the device: queue 0 holds the W·H camera rays; the shade
+// A frame is spp passes, one per sample index: pass s puts sample s of every pixel into queue 0
+// (W·H camera rays, whatever spp is). Rays live in per-bounce queues on the device; the shade
 // launch of bounce k writes the continuation rays of bounce k + 1 and this bounce's shadow rays
 // into slots taken by atomic_inc on a counter. Before each shade launch the host grows the next
 // queue to (rays of bounce k) × max_rays and the shadow queue to (rays of bounce k) ×
 // max_shadow_rays (buffers only grow, they are kept between frames), so memory follows the rays
-// alive, never pixels × a fixed maximum. A path ends when its hook emits nothing or at
-// ShadeSettings::max_depth (rk_emit_ray refuses beyond it); the frame ends when a queue is
-// empty. The only host round trip per bounce is reading the two counters.
+// alive, never pixels × samples × a fixed maximum. A path ends when its hook emits nothing or at
+// ShadeSettings::max_depth (rk_emit_ray refuses beyond it); a pass ends when a queue is empty.
+// The only host round trip per bounce is reading the two counters. The image accumulates sums
+// over the passes; the host multiplies them by 1 / spp after reading it back.
+//
+// Statistics (DeviceRenderStats): rays per kind and per bounce, and device time per stage
+// (camera, closest hit, shade, shadow kernels) from the queue's profiling events.
 //
 // Pixels are accumulated in a float RGBA buffer with an atomic_cmpxchg loop on the bits of each
 // float (OpenCL 1.2 has no atomic float add; several rays of one pixel can be in flight).
@@ -67,6 +83,7 @@
 #include <chrono>
 #include <cmath>
 #include <concepts>
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <span>
@@ -84,6 +101,7 @@
 #include "raykit/kernels/shade.hpp"
 #include "raykit/kernels/trace.hpp"
 #include "raykit/render/image.hpp"
+#include "raykit/render/render_cpu.hpp"
 #include "raykit/render/shade.hpp"
 #include "raykit/scene/camera.hpp"
 
@@ -91,6 +109,8 @@ namespace raykit::cl {
 
 /// max_shadow_rays value meaning "one per light of the scene".
 inline constexpr unsigned kPerLight = 0xFFFFFFFFu;
+/// max_shadow_rays value meaning "ShadeSettings::ao_samples".
+inline constexpr unsigned kPerAoSample = 0xFFFFFFFEu;
 
 template <class H>
 concept RayHook = requires {
@@ -100,32 +120,48 @@ concept RayHook = requires {
     { H::max_shadow_rays } -> std::convertible_to<unsigned>;
 } && std::is_trivially_copyable_v<typename H::Params>;
 
+/// True when hook H declares `traversal_steps = true` (it reads rk_traversal_steps).
+template <class H>
+constexpr bool hook_wants_traversal_steps() noexcept {
+    if constexpr (requires { H::traversal_steps; }) return bool(H::traversal_steps);
+    else return false;
+}
+
 // ---------------------------------------------------------------- crossing structs (kernels/raykit/kernels/shade.hpp)
+// Sizes and offsets are pinned here and, with the same numbers, by RK_DR_CHECK in the kernels.
 
 struct PathRay {
     Ray ray;
     float weight[3];
-    std::uint32_t pixel, depth, kind, pad0, pad1;
+    std::uint32_t pixel, depth, kind;
+    std::uint64_t rng;  ///< the sample's SampleRng state
 };
-static_assert(sizeof(PathRay) == 64);
+static_assert(sizeof(PathRay) == 64 && offsetof(PathRay, weight) == 32 && offsetof(PathRay, pixel) == 44 &&
+              offsetof(PathRay, depth) == 48 && offsetof(PathRay, kind) == 52 && offsetof(PathRay, rng) == 56);
 
 struct ShadowRay {
     Ray ray;
     float color[3];
     std::uint32_t pixel;
 };
-static_assert(sizeof(ShadowRay) == 48);
+static_assert(sizeof(ShadowRay) == 48 && offsetof(ShadowRay, color) == 32 && offsetof(ShadowRay, pixel) == 44);
 
 struct MaterialRecord {
     float kd[3], ks[3], ke[3], mirror[3];
     float ns, ni, transparency;
     std::int32_t texture, fresnel_mirror, alpha_tested, illum, pad;
 };
-static_assert(sizeof(MaterialRecord) == 80);
+static_assert(sizeof(MaterialRecord) == 80 && offsetof(MaterialRecord, ks) == 12 && offsetof(MaterialRecord, ke) == 24 &&
+              offsetof(MaterialRecord, mirror) == 36 && offsetof(MaterialRecord, ns) == 48 &&
+              offsetof(MaterialRecord, ni) == 52 && offsetof(MaterialRecord, transparency) == 56 &&
+              offsetof(MaterialRecord, texture) == 60 && offsetof(MaterialRecord, fresnel_mirror) == 64 &&
+              offsetof(MaterialRecord, alpha_tested) == 68 && offsetof(MaterialRecord, illum) == 72);
 
 struct TextureRecord {
     std::uint32_t offset, width, height, srgb;
 };
+static_assert(sizeof(TextureRecord) == 16 && offsetof(TextureRecord, width) == 4 &&
+              offsetof(TextureRecord, height) == 8 && offsetof(TextureRecord, srgb) == 12);
 
 struct LightRecord {
     float position[3];
@@ -135,15 +171,23 @@ struct LightRecord {
     float color[3];
     float pad1;
 };
-static_assert(sizeof(LightRecord) == 48);
+static_assert(sizeof(LightRecord) == 48 && offsetof(LightRecord, type) == 12 && offsetof(LightRecord, direction) == 16 &&
+              offsetof(LightRecord, color) == 32);
 
 struct RenderSettingsRecord {
     float ambient[3], background[3];
     float min_weight, depth_far;
     std::uint32_t width, height, max_depth, shadows, filter, light_count, has_normals, has_texcoords;
-    std::uint32_t material_id_count, material_count, alpha_testing, pad1;
+    std::uint32_t material_id_count, material_count, alpha_testing, ao_samples;
+    float ao_radius;
+    std::uint32_t pad0, pad1, pad2;
 };
-static_assert(sizeof(RenderSettingsRecord) == 80);
+static_assert(sizeof(RenderSettingsRecord) == 96 && offsetof(RenderSettingsRecord, background) == 12 &&
+              offsetof(RenderSettingsRecord, min_weight) == 24 && offsetof(RenderSettingsRecord, depth_far) == 28 &&
+              offsetof(RenderSettingsRecord, width) == 32 && offsetof(RenderSettingsRecord, max_depth) == 40 &&
+              offsetof(RenderSettingsRecord, light_count) == 52 && offsetof(RenderSettingsRecord, material_count) == 68 &&
+              offsetof(RenderSettingsRecord, alpha_testing) == 72 && offsetof(RenderSettingsRecord, ao_samples) == 76 &&
+              offsetof(RenderSettingsRecord, ao_radius) == 80);
 
 // ---------------------------------------------------------------- built-in hooks
 
@@ -178,16 +222,50 @@ struct WhittedRayHook {
     static constexpr unsigned max_shadow_rays = kPerLight;
     static constexpr const char* source = kernels::kShadeWhitted;
 };
-static_assert(RayHook<NormalsRayHook> && RayHook<DepthRayHook> && RayHook<WhittedRayHook>);
+/// Ambient occlusion (ShaderKind::ao): ShadeSettings::ao_samples cosine-weighted any-hit rays
+/// per camera ray, from the sample's random numbers as on the CPU.
+struct AoRayHook {
+    static constexpr const char* name = "rk_ao";
+    struct Params {
+        float pad = 0.0f;
+    };
+    static constexpr unsigned max_rays = 0;
+    static constexpr unsigned max_shadow_rays = kPerAoSample;
+    static constexpr const char* source = kernels::kShadeAo;
+};
+/// Traversal steps of the camera ray (ShaderKind::debug_cost), before the heat map.
+struct DebugCostRayHook {
+    static constexpr const char* name = "rk_debug_cost";
+    struct Params {
+        float pad = 0.0f;
+    };
+    static constexpr unsigned max_rays = 0;
+    static constexpr unsigned max_shadow_rays = 0;
+    static constexpr bool traversal_steps = true;
+    static constexpr const char* source = kernels::kShadeDebugCost;
+};
+static_assert(RayHook<NormalsRayHook> && RayHook<DepthRayHook> && RayHook<WhittedRayHook> && RayHook<AoRayHook> &&
+              RayHook<DebugCostRayHook>);
+static_assert(hook_wants_traversal_steps<DebugCostRayHook>() && !hook_wants_traversal_steps<WhittedRayHook>());
 
-/// What a device frame did.
+/// What a device frame did. Bounce slots as in render/shade.hpp (kBounceSlots: 0, 1, 2, 3+).
 struct DeviceRenderStats {
-    std::uint64_t primary = 0, continuation = 0, shadow = 0;  ///< rays traced per kind
-    unsigned bounces = 0;           ///< closest-hit launches (queues traced)
+    std::uint64_t primary = 0, continuation = 0, shadow = 0;  ///< rays traced per kind (shadow: any-hit, ao included)
+    unsigned passes = 0;            ///< sample passes (= spp)
+    unsigned bounces = 0;           ///< most closest-hit launches (queues traced) in one pass
     std::size_t peak_queue = 0;     ///< most rays in one queue (camera queue included)
     std::size_t queue_bytes = 0;    ///< device memory held by the ray queues and hits after the frame
-    double render_ms = 0.0;         ///< wall time of the frame (launches to image read back)
+    double render_ms = 0.0;         ///< wall time of the frame (launches to image read back and resolved)
+    /// Device time per stage (profiling events, summed over passes and bounces), and the host's
+    /// read-back, 1/spp and heat map (resolve).
+    double camera_ms = 0.0, trace_ms = 0.0, shade_ms = 0.0, shadow_ms = 0.0, resolve_ms = 0.0;
+    std::uint64_t bounce_rays[kBounceSlots] = {};  ///< closest-hit + shadow rays per bounce slot
+    double bounce_ms[kBounceSlots] = {};           ///< closest-hit + shadow kernel time per bounce slot
     std::uint64_t total() const noexcept { return primary + continuation + shadow; }
+    /// Rays of bounce slot b per second of its closest-hit and shadow kernels, in millions.
+    double bounce_mrays_per_second(unsigned b) const noexcept {
+        return b < kBounceSlots && bounce_ms[b] > 0.0 ? double(bounce_rays[b]) / (bounce_ms[b] * 1e3) : 0.0;
+    }
 };
 
 namespace detail {
@@ -206,6 +284,8 @@ Program ray_hook_program(Device& dev) {
     const std::string name = H::name;
     detail::check_ray_hook_name(name);
     std::vector<SourcePart> parts = base_parts();
+    if constexpr (hook_wants_traversal_steps<H>())
+        parts.push_back({"<hook " + name + " options>", "#define RK_DR_STEPS 1\n"});
     parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
     parts.push_back({"raykit/kernels/trace.hpp", kernels::kTrace});
     parts.push_back({"raykit/kernels/shade.hpp", kernels::kShade});
@@ -310,86 +390,165 @@ public:
         lights_ = Buffer<LightRecord>(*dev_, rec, CL_MEM_READ_ONLY);
     }
 
-    /// Renders with the built-in hook for set.shader (normals, depth, whitted). Throws
-    /// std::invalid_argument for ao and debug_cost, and for an invalid camera.
-    Image render(const Camera& cam, const ShadeSettings& set, DeviceRenderStats* stats = nullptr) {
-        switch (set.shader) {
+    /// Renders with the built-in hook for set.shade.shader (every ShaderKind), `set.spp` samples
+    /// per pixel placed by PixelSampler; debug_cost images are mapped with cost_heat_map
+    /// (set.cost_scale) as render_cpu maps them. Throws std::invalid_argument for spp == 0 and an
+    /// invalid camera.
+    Image render(const Camera& cam, const RenderSettings& set, DeviceRenderStats* stats = nullptr) {
+        switch (set.shade.shader) {
             case ShaderKind::normals: return render_hook<NormalsRayHook>(cam, set, {}, stats);
             case ShaderKind::depth: return render_hook<DepthRayHook>(cam, set, {}, stats);
+            case ShaderKind::ao: return render_hook<AoRayHook>(cam, set, {}, stats);
+            case ShaderKind::debug_cost: {
+                using Clock = std::chrono::steady_clock;
+                Image img = render_hook<DebugCostRayHook>(cam, set, {}, stats);
+                const auto t0 = Clock::now();
+                cost_heat_map(img, set.cost_scale);
+                if (stats) {
+                    const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+                    stats->resolve_ms += ms;
+                    stats->render_ms += ms;
+                }
+                return img;
+            }
             case ShaderKind::whitted: return render_hook<WhittedRayHook>(cam, set, {}, stats);
-            default:
-                throw std::invalid_argument(std::string("raykit::cl::DeviceRenderer: shader '") +
-                                            shader_name(set.shader) + "' is not available on the device");
         }
+        throw std::invalid_argument("raykit::cl::DeviceRenderer: unknown shader");
+    }
+    /// One sample at each pixel centre (render_cpu with spp = 1, jitter = false).
+    Image render(const Camera& cam, const ShadeSettings& set, DeviceRenderStats* stats = nullptr) {
+        return render(cam, centre_sample(set), stats);
     }
 
-    /// Renders with ray hook H (see the header comment). `set` supplies max_depth, ambient,
-    /// background, filter, shadows, depth_far and min_weight to the hook (ctx->set).
+    /// Renders with ray hook H (see the header comment): set.spp passes, samples placed by
+    /// PixelSampler(set.spp, set.seed, set.jitter). `set.shade` supplies max_depth, ambient,
+    /// background, filter, shadows, depth_far, min_weight, ao_samples and ao_radius to the hook
+    /// (ctx->set). The image is the mean over the samples, with no further mapping.
     template <RayHook H>
-    Image render_hook(const Camera& cam, const ShadeSettings& set, const typename H::Params& params = {},
+    Image render_hook(const Camera& cam, const RenderSettings& set, const typename H::Params& params = {},
                       DeviceRenderStats* stats = nullptr) {
         using Clock = std::chrono::steady_clock;
         const auto t0 = Clock::now();
+        if (set.spp == 0) throw std::invalid_argument("raykit::cl::DeviceRenderer: spp must be at least 1");
         const CameraFrame frame = cam.frame();
         const std::size_t n_pixels = std::size_t(frame.width) * frame.height;
         if (n_pixels >= 0xFFFFFFFFu / 4) throw std::length_error("raykit::cl::DeviceRenderer: image too large");
         Kernels& k = kernels_for<H>();
-        const RenderSettingsRecord rec = settings_record(set, frame);
+        const ShadeSettings& shade = set.shade;
+        const RenderSettingsRecord rec = settings_record(shade, frame);
         const std::uint32_t max_rays = H::max_rays;
-        const std::uint32_t max_shadows = H::max_shadow_rays == kPerLight ? light_count_ : H::max_shadow_rays;
+        const std::uint32_t max_shadows = H::max_shadow_rays == kPerLight      ? light_count_
+                                          : H::max_shadow_rays == kPerAoSample ? shade.ao_samples
+                                                                               : H::max_shadow_rays;
+        constexpr bool want_steps = hook_wants_traversal_steps<H>();
+        const PixelSampler sampler(set.spp, set.seed, set.jitter);
 
         DeviceRenderStats st;
+        st.passes = set.spp;
+        Device& dev = *dev_;
+        image_.reserve(dev, n_pixels * 4);
+        std::vector<Timed> events;
+        for (std::uint32_t pass = 0; pass < set.spp; ++pass) {
+            queue_.reserve(dev, n_pixels);
+            set_args(k.camera, frame, queue_, image_, static_cast<cl_ulong>(set.seed), pass, set.spp,
+                     sampler.grid_side(), sampler.inv_grid_side(), sampler.inv_spp(), set.jitter ? 1u : 0u);
+            launch(dev.queue(), k.camera, n_pixels, kTraceGroupSize, &events.emplace_back(Stage::camera, 0u).event);
+            std::size_t n = n_pixels;
+            st.primary += n;
+            st.peak_queue = std::max(st.peak_queue, n);
+            std::uint32_t depth = 0;
+            for (; n > 0; ++depth) {
+                const unsigned slot = bounce_slot(depth);
+                hits_.reserve(dev, n);
+                steps_.reserve(dev, want_steps ? n : 1);
+                set_args(k.closest, nodes_, prim_ids_, triangles_, positions_, node_count_, queue_, hits_, steps_,
+                         static_cast<std::uint32_t>(n), materials_, material_ids_, texcoords_, textures_, texels_, rec);
+                launch(dev.queue(), k.closest, n, kTraceGroupSize, &events.emplace_back(Stage::trace, slot).event);
+                const std::uint32_t rays_here = depth < shade.max_depth ? max_rays : 0u;
+                const std::size_t next_cap = n * rays_here, shadow_cap = n * max_shadows;
+                if (next_cap >= 0xFFFFFFFFu || shadow_cap >= 0xFFFFFFFFu)
+                    throw std::length_error("raykit::cl::DeviceRenderer: ray queue beyond 2^32 rays");
+                next_.reserve(dev, next_cap);
+                shadow_.reserve(dev, shadow_cap);
+                const std::uint32_t zero[2] = {0u, 0u};
+                counters_.write(dev, std::span<const std::uint32_t>(zero, 2));
+                set_args(k.shade, queue_, hits_, steps_, static_cast<std::uint32_t>(n), triangles_, positions_,
+                         normals_, texcoords_, material_ids_, materials_, textures_, texels_, srgb_lut_, lights_, rec,
+                         image_, next_, counters_, shadow_, rays_here, max_shadows, params);
+                launch(dev.queue(), k.shade, n, kTraceGroupSize, &events.emplace_back(Stage::shade, slot).event);
+                std::uint32_t cnt[2] = {0u, 0u};
+                counters_.read(dev, std::span<std::uint32_t>(cnt, 2));
+                const std::size_t next_n = std::min<std::size_t>(cnt[0], next_cap);
+                const std::size_t shadow_n = std::min<std::size_t>(cnt[1], shadow_cap);
+                if (shadow_n > 0) {
+                    set_args(k.shadow, nodes_, prim_ids_, triangles_, positions_, node_count_, shadow_,
+                             static_cast<std::uint32_t>(shadow_n), image_, materials_, material_ids_, texcoords_,
+                             textures_, texels_, rec);
+                    launch(dev.queue(), k.shadow, shadow_n, kTraceGroupSize,
+                           &events.emplace_back(Stage::shadow, slot).event);
+                }
+                st.bounce_rays[slot] += n + shadow_n;
+                st.shadow += shadow_n;
+                st.continuation += next_n;
+                st.peak_queue = std::max(st.peak_queue, next_n);
+                std::swap(queue_, next_);
+                n = next_n;
+            }
+            st.bounces = std::max(st.bounces, depth);
+            if (set.progress) set.progress(pass + 1, set.spp);
+        }
+        const auto t_resolve = Clock::now();
+        std::vector<float> px(n_pixels * 4);
+        image_.read(dev, std::span<float>(px));
+        const float inv_spp = sampler.inv_spp();
+        Image img(frame.width, frame.height, vec4(0.0f));
+        for (std::size_t i = 0; i < n_pixels; ++i)
+            img.pixels[i] = vec4(px[4 * i], px[4 * i + 1], px[4 * i + 2], px[4 * i + 3]) * inv_spp;
+        const auto t_end = Clock::now();
+        for (Timed& e : events) {
+            if (e.event() == nullptr) continue;  // nothing was launched
+            const double ms = event_ms(e.event);
+            switch (e.stage) {
+                case Stage::camera: st.camera_ms += ms; break;
+                case Stage::trace: st.trace_ms += ms; break;
+                case Stage::shade: st.shade_ms += ms; break;
+                case Stage::shadow: st.shadow_ms += ms; break;
+            }
+            if (e.stage == Stage::trace || e.stage == Stage::shadow) st.bounce_ms[e.slot] += ms;
+        }
+        st.queue_bytes = queue_.bytes() + next_.bytes() + shadow_.bytes() + hits_.bytes() + steps_.bytes();
+        st.resolve_ms = std::chrono::duration<double, std::milli>(t_end - t_resolve).count();
+        st.render_ms = std::chrono::duration<double, std::milli>(t_end - t0).count();
+        if (stats) *stats = st;
+        return img;
+    }
+    /// render_hook with one sample at each pixel centre (spp = 1, jitter = false).
+    template <RayHook H>
+    Image render_hook(const Camera& cam, const ShadeSettings& set, const typename H::Params& params = {},
+                      DeviceRenderStats* stats = nullptr) {
+        return render_hook<H>(cam, centre_sample(set), params, stats);
+    }
+
+    /// The camera rays of sample `sample` of every pixel (row-major), as the renderer traces
+    /// them: for tests and tools (they equal PixelSampler + CameraFrame::ray on the CPU).
+    std::vector<Ray> camera_rays(const Camera& cam, const RenderSettings& set, std::uint32_t sample) {
+        if (set.spp == 0 || sample >= set.spp)
+            throw std::invalid_argument("raykit::cl::DeviceRenderer::camera_rays: sample must be below spp");
+        const CameraFrame frame = cam.frame();
+        const std::size_t n_pixels = std::size_t(frame.width) * frame.height;
+        Kernels& k = kernels_for<NormalsRayHook>();
+        const PixelSampler sampler(set.spp, set.seed, set.jitter);
         Device& dev = *dev_;
         image_.reserve(dev, n_pixels * 4);
         queue_.reserve(dev, n_pixels);
-        set_args(k.camera, frame, queue_, image_);
+        set_args(k.camera, frame, queue_, image_, static_cast<cl_ulong>(set.seed), sample, set.spp,
+                 sampler.grid_side(), sampler.inv_grid_side(), sampler.inv_spp(), set.jitter ? 1u : 0u);
         launch(dev.queue(), k.camera, n_pixels, kTraceGroupSize);
-        std::size_t n = n_pixels;
-        st.primary = n;
-        st.peak_queue = n;
-        for (std::uint32_t depth = 0; n > 0; ++depth) {
-            ++st.bounces;
-            hits_.reserve(dev, n);
-            set_args(k.closest, nodes_, prim_ids_, triangles_, positions_, node_count_, queue_, hits_,
-                     static_cast<std::uint32_t>(n), materials_, material_ids_, texcoords_, textures_, texels_, rec);
-            launch(dev.queue(), k.closest, n, kTraceGroupSize);
-            const std::uint32_t rays_here = depth < set.max_depth ? max_rays : 0u;
-            const std::size_t next_cap = n * rays_here, shadow_cap = n * max_shadows;
-            if (next_cap >= 0xFFFFFFFFu || shadow_cap >= 0xFFFFFFFFu)
-                throw std::length_error("raykit::cl::DeviceRenderer: ray queue beyond 2^32 rays");
-            next_.reserve(dev, next_cap);
-            shadow_.reserve(dev, shadow_cap);
-            const std::uint32_t zero[2] = {0u, 0u};
-            counters_.write(dev, std::span<const std::uint32_t>(zero, 2));
-            set_args(k.shade, queue_, hits_, static_cast<std::uint32_t>(n), triangles_, positions_, normals_,
-                     texcoords_, material_ids_, materials_, textures_, texels_, srgb_lut_, lights_, rec, image_, next_,
-                     counters_, shadow_, rays_here, max_shadows, params);
-            launch(dev.queue(), k.shade, n, kTraceGroupSize);
-            std::uint32_t cnt[2] = {0u, 0u};
-            counters_.read(dev, std::span<std::uint32_t>(cnt, 2));
-            const std::size_t next_n = std::min<std::size_t>(cnt[0], next_cap);
-            const std::size_t shadow_n = std::min<std::size_t>(cnt[1], shadow_cap);
-            if (shadow_n > 0) {
-                set_args(k.shadow, nodes_, prim_ids_, triangles_, positions_, node_count_, shadow_,
-                         static_cast<std::uint32_t>(shadow_n), image_, materials_, material_ids_, texcoords_,
-                         textures_, texels_, rec);
-                launch(dev.queue(), k.shadow, shadow_n, kTraceGroupSize);
-            }
-            st.shadow += shadow_n;
-            st.continuation += next_n;
-            st.peak_queue = std::max(st.peak_queue, next_n);
-            std::swap(queue_, next_);
-            n = next_n;
-        }
-        std::vector<float> px(n_pixels * 4);
-        image_.read(dev, std::span<float>(px));
-        Image img(frame.width, frame.height, vec4(0.0f));
-        for (std::size_t i = 0; i < n_pixels; ++i)
-            img.pixels[i] = vec4(px[4 * i], px[4 * i + 1], px[4 * i + 2], px[4 * i + 3]);
-        st.queue_bytes = queue_.bytes() + next_.bytes() + shadow_.bytes() + hits_.bytes();
-        st.render_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-        if (stats) *stats = st;
-        return img;
+        std::vector<PathRay> q(n_pixels);
+        queue_.read(dev, std::span<PathRay>(q));
+        std::vector<Ray> rays(n_pixels);
+        for (std::size_t i = 0; i < n_pixels; ++i) rays[i] = q[i].ray;
+        return rays;
     }
 
     /// Builds (or finds) the program and kernels of hook H now, e.g. before timing frames.
@@ -405,6 +564,27 @@ private:
         Program program;
         ::cl::Kernel camera, closest, shadow, shade;
     };
+    enum class Stage { camera, trace, shade, shadow };
+    struct Timed {
+        Timed(Stage s, unsigned b) : stage(s), slot(b) {}
+        Stage stage;
+        unsigned slot;
+        ::cl::Event event;
+    };
+    /// Device time of a finished command (profiling info), in ms.
+    static double event_ms(const ::cl::Event& e) {
+        cl_ulong start = 0, end = 0;
+        check(e.getProfilingInfo(CL_PROFILING_COMMAND_START, &start), "clGetEventProfilingInfo");
+        check(e.getProfilingInfo(CL_PROFILING_COMMAND_END, &end), "clGetEventProfilingInfo");
+        return end > start ? double(end - start) * 1e-6 : 0.0;
+    }
+    static RenderSettings centre_sample(const ShadeSettings& s) {
+        RenderSettings r;
+        r.spp = 1;
+        r.jitter = false;
+        r.shade = s;
+        return r;
+    }
 
     template <RayHook H>
     Kernels& kernels_for() {
@@ -447,6 +627,11 @@ private:
         r.material_id_count = material_id_count_;
         r.material_count = material_count_;
         r.alpha_testing = alpha_testing_ ? 1u : 0u;
+        r.ao_samples = s.ao_samples;
+        float radius = s.ao_radius;  // as the CPU's ao shader
+        if (!(radius > 0.0f)) radius = 0.1f * glm::length(bounds_.extent());
+        if (!(radius > 0.0f)) radius = kInf;
+        r.ao_radius = radius;
         return r;
     }
 
@@ -455,7 +640,7 @@ private:
     Buffer<float> positions_, normals_, texcoords_, srgb_lut_, image_;
     Buffer<Triangle> triangles_;
     Buffer<Node> nodes_;
-    Buffer<std::uint32_t> prim_ids_, material_ids_, counters_;
+    Buffer<std::uint32_t> prim_ids_, material_ids_, counters_, steps_;
     Buffer<MaterialRecord> materials_;
     Buffer<TextureRecord> textures_;
     Buffer<std::uint8_t> texels_;

@@ -1,10 +1,14 @@
 // raykit/kernels/shade.hpp — the wavefront renderer's device side: path and
 // shadow queues, the surface at a hit, the ray-hook API and the built-in
-// shaders (normals, depth, whitted). Host side: include/raykit/cl/render.hpp.
+// shaders (normals, depth, whitted, ao, debug-cost). Host side:
+// include/raykit/cl/render.hpp.
 //
-// A frame is a loop over bounces. Queue 0 holds one camera ray per pixel
-// (pixel centres). Per bounce:
-//   rk_dr_closest        closest hit of every ray of the current queue
+// A frame is one pass per sample index s = 0 .. spp-1, each a loop over
+// bounces. rk_dr_camera fills queue 0 with sample s of every pixel (one
+// camera ray per pixel, placed as raykit::PixelSampler places it, with the
+// sample's generator state; pass 0 also clears the image). Per bounce:
+//   rk_dr_closest        closest hit of every ray of the current queue (and,
+//                        for hooks that ask, its traversal steps)
 //   rk_dr_shade_NAME     per ray: the surface at the hit, then the hook NAME,
 //                        which may add colour to the ray's pixel and emit
 //                        shadow rays (any-hit) and continuation rays (closest
@@ -20,11 +24,24 @@
 // of one pixel (a reflection and a refraction, their shadow rays) may add to
 // it in the same launch, so rk_add_color adds with an atomic_cmpxchg loop on
 // the float's bits (rk_atomic_add_float). The order of additions, and so the
-// last bits of a pixel, may vary between runs.
+// last bits of a pixel, may vary between runs. The image holds sums over the
+// samples; the host multiplies by 1 / spp (as render_cpu does).
+//
+// Random numbers: raykit::SampleRng (splitmix64) and raykit::hash_seed with
+// the same 64-bit integer operations (rk_rng_*, rk_hash_seed). Each path ray
+// carries its sample's generator state; camera-ray hooks draw the numbers the
+// CPU shader draws for that sample (rk_random), continuation rays inherit the
+// state at the time they are emitted.
 //
 // Ray-hook API (what a hook's source may call; ctx is the hook's first argument)
 //   void  rk_add_color(rk_ctx* ctx, float3 c)      add c (linear RGB) to the path's pixel
-//   void  rk_set_alpha(rk_ctx* ctx, float a)       set the pixel's alpha (camera rays only, depth 0)
+//   void  rk_set_alpha(rk_ctx* ctx, float a)       set the coverage of this sample (camera rays
+//                                                  only, depth 0; the pixel's alpha is the mean)
+//   float rk_random(rk_ctx* ctx)                   next uniform float in [0, 1) of the sample's
+//                                                  generator (SampleRng::next_float)
+//   uint  rk_traversal_steps(const rk_ctx* ctx)    inner nodes + leaves the closest-hit walk of
+//                                                  this ray visited (hooks that declare
+//                                                  traversal_steps; else 0)
 //   bool  rk_emit_shadow(rk_ctx* ctx, float3 org, float3 dir, float tmax, float3 c)
 //                                                  any-hit query on [0, tmax]: adds c to the
 //                                                  pixel when nothing blocks it; false when the
@@ -45,6 +62,10 @@
 // hit->prim == RK_INVALID on a miss (then *s is all zero). path->weight is the
 // path's throughput, path->depth its bounce (0 = camera ray), path->pixel its
 // pixel (y · width + x), path->kind what the emitter said (0 = camera ray).
+//
+// Layouts: every struct below that crosses to the host has its size and field
+// offsets checked at compile time here (RK_DR_CHECK) and in cl/render.hpp
+// (static_assert), with the same numbers.
 #pragma once
 
 namespace raykit::kernels {
@@ -57,8 +78,7 @@ typedef struct {
     uint pixel;
     uint depth;
     uint kind;
-    uint pad0;
-    uint pad1;
+    ulong rng;        /* state of the sample's generator (raykit::SampleRng::state) */
 } rk_path_ray;
 
 /* Shadow ray: colour added to `pixel` when nothing blocks it (raykit::cl::ShadowRay). */
@@ -120,8 +140,79 @@ typedef struct {
     uint material_id_count;
     uint material_count;  /* including the default material (the last one) */
     uint alpha_testing;   /* some material has alpha cut-outs: traversals test them */
+    uint ao_samples;      /* ao: rays per camera ray */
+    float ao_radius;      /* ao: resolved on the host (> 0, or INFINITY) */
+    uint pad0;
     uint pad1;
+    uint pad2;
 } rk_render_settings;
+
+/* Compile-time layout checks, the twins of the static_asserts in cl/render.hpp. */
+#define RK_DR_CHECK(name, cond) typedef char rk_dr_layout_check_##name[(cond) ? 1 : -1]
+RK_DR_CHECK(path_size, sizeof(rk_path_ray) == 64);
+RK_DR_CHECK(path_weight, __builtin_offsetof(rk_path_ray, weight) == 32);
+RK_DR_CHECK(path_pixel, __builtin_offsetof(rk_path_ray, pixel) == 44);
+RK_DR_CHECK(path_depth, __builtin_offsetof(rk_path_ray, depth) == 48);
+RK_DR_CHECK(path_kind, __builtin_offsetof(rk_path_ray, kind) == 52);
+RK_DR_CHECK(path_rng, __builtin_offsetof(rk_path_ray, rng) == 56);
+RK_DR_CHECK(shadow_size, sizeof(rk_shadow_ray) == 48);
+RK_DR_CHECK(shadow_color, __builtin_offsetof(rk_shadow_ray, color) == 32);
+RK_DR_CHECK(shadow_pixel, __builtin_offsetof(rk_shadow_ray, pixel) == 44);
+RK_DR_CHECK(material_size, sizeof(rk_material) == 80);
+RK_DR_CHECK(material_ks, __builtin_offsetof(rk_material, ks) == 12);
+RK_DR_CHECK(material_ke, __builtin_offsetof(rk_material, ke) == 24);
+RK_DR_CHECK(material_mirror, __builtin_offsetof(rk_material, mirror) == 36);
+RK_DR_CHECK(material_ns, __builtin_offsetof(rk_material, ns) == 48);
+RK_DR_CHECK(material_ni, __builtin_offsetof(rk_material, ni) == 52);
+RK_DR_CHECK(material_transparency, __builtin_offsetof(rk_material, transparency) == 56);
+RK_DR_CHECK(material_texture, __builtin_offsetof(rk_material, texture) == 60);
+RK_DR_CHECK(material_fresnel, __builtin_offsetof(rk_material, fresnel_mirror) == 64);
+RK_DR_CHECK(material_alpha, __builtin_offsetof(rk_material, alpha_tested) == 68);
+RK_DR_CHECK(material_illum, __builtin_offsetof(rk_material, illum) == 72);
+RK_DR_CHECK(texture_size, sizeof(rk_texture) == 16);
+RK_DR_CHECK(texture_width, __builtin_offsetof(rk_texture, width) == 4);
+RK_DR_CHECK(texture_height, __builtin_offsetof(rk_texture, height) == 8);
+RK_DR_CHECK(texture_srgb, __builtin_offsetof(rk_texture, srgb) == 12);
+RK_DR_CHECK(light_size, sizeof(rk_light) == 48);
+RK_DR_CHECK(light_type, __builtin_offsetof(rk_light, type) == 12);
+RK_DR_CHECK(light_direction, __builtin_offsetof(rk_light, direction) == 16);
+RK_DR_CHECK(light_color, __builtin_offsetof(rk_light, color) == 32);
+RK_DR_CHECK(settings_size, sizeof(rk_render_settings) == 96);
+RK_DR_CHECK(settings_background, __builtin_offsetof(rk_render_settings, background) == 12);
+RK_DR_CHECK(settings_min_weight, __builtin_offsetof(rk_render_settings, min_weight) == 24);
+RK_DR_CHECK(settings_depth_far, __builtin_offsetof(rk_render_settings, depth_far) == 28);
+RK_DR_CHECK(settings_width, __builtin_offsetof(rk_render_settings, width) == 32);
+RK_DR_CHECK(settings_max_depth, __builtin_offsetof(rk_render_settings, max_depth) == 40);
+RK_DR_CHECK(settings_light_count, __builtin_offsetof(rk_render_settings, light_count) == 52);
+RK_DR_CHECK(settings_material_count, __builtin_offsetof(rk_render_settings, material_count) == 68);
+RK_DR_CHECK(settings_alpha_testing, __builtin_offsetof(rk_render_settings, alpha_testing) == 72);
+RK_DR_CHECK(settings_ao_samples, __builtin_offsetof(rk_render_settings, ao_samples) == 76);
+RK_DR_CHECK(settings_ao_radius, __builtin_offsetof(rk_render_settings, ao_radius) == 80);
+
+/* ---- random numbers: the twins of raykit::SampleRng and raykit::hash_seed (render/shade.hpp) */
+typedef struct {
+    ulong state;
+} rk_rng;
+
+#define RK_GOLDEN 0x9E3779B97F4A7C15UL
+
+/* SampleRng::next_u64 (splitmix64). */
+RK_INLINE ulong rk_rng_next(rk_rng* r) {
+    ulong z = (r->state += RK_GOLDEN);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9UL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBUL;
+    return z ^ (z >> 31);
+}
+/* SampleRng::next_float: uniform in [0, 1). */
+RK_INLINE float rk_rng_float(rk_rng* r) { return (float)(rk_rng_next(r) >> 40) * (1.0f / 16777216.0f); }
+/* hash_seed(a, b, c). */
+RK_INLINE ulong rk_hash_seed(ulong a, ulong b, ulong c) {
+    rk_rng r;
+    r.state = (a * 0xD6E8FEB86659FD93UL) ^ b;
+    const ulong t = rk_rng_next(&r) + c * RK_GOLDEN;
+    r.state ^= t;
+    return rk_rng_next(&r);
+}
 
 /* The surface at a hit (raykit::SurfacePoint). */
 typedef struct {
@@ -150,6 +241,9 @@ typedef struct {
     uint depth;
     uint rays_left;
     uint shadows_left;
+    rk_rng rng;                       /* the sample's generator (see rk_random) */
+    uint steps;                       /* closest-hit traversal steps (hooks that ask), else 0 */
+    float alpha_before;               /* camera rays: the pixel's coverage from earlier samples */
 } rk_ctx;
 
 RK_INLINE float3 rk_f3(const float a[3]) { return (float3)(a[0], a[1], a[2]); }
@@ -174,9 +268,13 @@ RK_INLINE void rk_add_color(rk_ctx* ctx, float3 c) {
     rk_atomic_add_float(px + 2, c.z);
 }
 
+/* One camera ray per pixel is in flight per pass, so a plain store is race-free. */
 RK_INLINE void rk_set_alpha(rk_ctx* ctx, float a) {
-    if (ctx->depth == 0) ctx->image[(size_t)4 * ctx->pixel + 3] = a;
+    if (ctx->depth == 0) ctx->image[(size_t)4 * ctx->pixel + 3] = ctx->alpha_before + a;
 }
+
+RK_INLINE float rk_random(rk_ctx* ctx) { return rk_rng_float(&ctx->rng); }
+RK_INLINE uint rk_traversal_steps(const rk_ctx* ctx) { return ctx->steps; }
 
 RK_INLINE rk_ray rk_make_ray(float3 org, float3 dir, float tmin, float tmax) {
     rk_ray r;
@@ -209,8 +307,7 @@ RK_INLINE bool rk_emit_ray(rk_ctx* ctx, float3 org, float3 dir, float3 weight, u
     r.pixel = ctx->pixel;
     r.depth = ctx->depth + 1;
     r.kind = kind;
-    r.pad0 = 0u;
-    r.pad1 = 0u;
+    r.rng = ctx->rng.state;
     ctx->next[slot] = r;
     return true;
 }
@@ -368,13 +465,19 @@ RK_INLINE bool rk_cut_out(const rk_alpha_scene* a, __global const rk_triangle* t
     return rk_texture_alpha(a, m->texture, uv) < 0.5f;
 }
 
-/* rk_trace_tree (kernels/raykit/kernels/trace.hpp) for one mesh with the cut-out test in the
-   leaves, as the CPU's Tracer<.., kAlpha = true>: a cut-out candidate is skipped and the ray
-   goes on through it. */
-RK_INLINE bool rk_trace_alpha(__global const rk_node* restrict nodes, __global const uint* restrict prim_ids,
-                              __global const rk_triangle* restrict tris, __global const float* restrict pos,
-                              const uint node_count, const rk_ray* ray, const int any, rk_hit* hit,
-                              const rk_alpha_scene* a) {
+/* rk_trace_tree (kernels/raykit/kernels/trace.hpp) for one mesh, the twin of the CPU's
+   Tracer<.., kAlpha>::closest / any (render/shade.hpp): with `alpha`, the cut-out test in the
+   leaves (a cut-out candidate is skipped and the ray goes on through it); with `steps`, the
+   inner nodes + leaves visited are written there (raykit::TraversalStats nodes + leaves: same
+   walk, same order, so the same count). This duplicates rk_trace_tree's walk rather than
+   changing it: the plain trace kernels keep their code, and this one is used only when a scene
+   has cut-outs or a hook asks for steps. */
+RK_INLINE bool rk_dr_walk(__global const rk_node* restrict nodes, __global const uint* restrict prim_ids,
+                          __global const rk_triangle* restrict tris, __global const float* restrict pos,
+                          const uint node_count, const rk_ray* ray, const int any, rk_hit* hit,
+                          const rk_alpha_scene* a, const int alpha, uint* steps) {
+    uint visited = 0;
+    if (steps) *steps = 0u;
     if (node_count == 0) return false;
     const rk_slab_ray s = rk_slab_prepare(ray->org, ray->dir, ray->tmin);
     const rk_wt_ray w = rk_wt_prepare(ray->org, ray->dir);
@@ -390,6 +493,7 @@ RK_INLINE bool rk_trace_alpha(__global const rk_node* restrict nodes, __global c
     for (;;) {
         __global const rk_node* n = nodes + cur;
         const uint index = n->index, count = n->count;
+        ++visited;
         if (count != 0) {
             for (uint k = index; k < index + count; ++k) {
                 const uint p = prim_ids[k];
@@ -397,10 +501,13 @@ RK_INLINE bool rk_trace_alpha(__global const rk_node* restrict nodes, __global c
                 const float3 p0 = vload3(t.v[0], pos), p1 = vload3(t.v[1], pos), p2 = vload3(t.v[2], pos);
                 float th, uh, vh;
                 if (any) {
-                    if (rk_wt_intersect(&w, p0, p1, p2, tmin, tlimit, &th, &uh, &vh) && !rk_cut_out(a, tris, p, uh, vh))
+                    if (rk_wt_intersect(&w, p0, p1, p2, tmin, tlimit, &th, &uh, &vh) &&
+                        !(alpha && rk_cut_out(a, tris, p, uh, vh))) {
+                        if (steps) *steps = visited;
                         return true;
+                    }
                 } else if (rk_wt_intersect(&w, p0, p1, p2, tmin, tmax, &th, &uh, &vh) &&
-                           (th < hit->t || p < hit->prim) && !rk_cut_out(a, tris, p, uh, vh)) {
+                           (th < hit->t || p < hit->prim) && !(alpha && rk_cut_out(a, tris, p, uh, vh))) {
                     hit->t = th;
                     hit->u = uh;
                     hit->v = vh;
@@ -421,7 +528,7 @@ RK_INLINE bool rk_trace_alpha(__global const rk_node* restrict nodes, __global c
                     farc = index;
                     tf = tl;
                 }
-                if (sp == RK_MAX_DEPTH) return found;
+                if (sp == RK_MAX_DEPTH) break;
                 st_node[sp] = farc;
                 st_t[sp] = tf;
                 ++sp;
@@ -437,44 +544,83 @@ RK_INLINE bool rk_trace_alpha(__global const rk_node* restrict nodes, __global c
                 continue;
             }
         }
-        for (;;) {
-            if (sp == 0) return found;
+        bool next = false;
+        while (sp > 0) {
             --sp;
             if (st_t[sp] <= tmax * RK_SLAB_EXIT_SCALE) {
                 cur = st_node[sp];
+                next = true;
                 break;
             }
         }
+        if (!next) break;
     }
+    if (steps) *steps = visited;
+    return found;
 }
 
-/* Closest (any == 0) or any hit of one mesh, with cut-outs when the scene has them. */
+/* Closest (any == 0) or any hit of one mesh, with cut-outs when the scene has them, and the
+   traversal steps when `steps` is not 0. */
 RK_INLINE bool rk_dr_trace(__global const rk_node* nodes, __global const uint* prim_ids,
                            __global const rk_triangle* tris, __global const float* pos, const uint node_count,
-                           const rk_ray* r, const int any, rk_hit* h, const rk_alpha_scene* a) {
-    if (a->set.alpha_testing) return rk_trace_alpha(nodes, prim_ids, tris, pos, node_count, r, any, h, a);
+                           const rk_ray* r, const int any, rk_hit* h, const rk_alpha_scene* a, uint* steps) {
+    if (a->set.alpha_testing || steps)
+        return rk_dr_walk(nodes, prim_ids, tris, pos, node_count, r, any, h, a, a->set.alpha_testing != 0u, steps);
     rk_object ob = {0u, node_count, 0u, 0u, 0u, 0u, 0u, 0u};
     return rk_trace_tree(nodes, prim_ids, tris, pos, &ob, r, r->tmax, any, h);
 }
 
 /* ---- fixed kernels */
 
-/* Camera rays through the pixel centres into queue 0; clears the image. */
-__kernel void rk_dr_camera(const rk_camera cam, __global rk_path_ray* queue, __global float4* image) {
+/* The N-rooks column of sample s (raykit::PixelSampler): the forward shuffle is
+   "for k = spp-1 down to 1: swap(col[k], col[u_k % (k + 1)])" with u_k the (spp - k)-th draw of
+   SampleRng(hash_seed(seed, pixel, ~0)) from the identity; undoing the swaps from the last one
+   (k = 1) to the first tells which original position, i.e. which column, ends at s. splitmix64
+   is counter-based (the state before draw d is seed + (d - 1)·golden), so no array is needed. */
+RK_INLINE uint rk_nrooks_column(ulong seed, ulong pixel, uint s, uint spp) {
+    const ulong base = rk_hash_seed(seed, pixel, ~(ulong)0);
+    uint pos = s;
+    for (uint k = 1; k < spp; ++k) {
+        rk_rng r;
+        r.state = base + (ulong)(spp - 1u - k) * RK_GOLDEN;
+        const uint j = (uint)(rk_rng_next(&r) % (ulong)(k + 1u));
+        if (pos == k) pos = j;
+        else if (pos == j) pos = k;
+    }
+    return pos;
+}
+
+/* Sample `sample` of every pixel into queue 0 (raykit::PixelSampler: grid_m = m for an m x m
+   grid, 0 for N-rooks; inv_m = 1 / m and inv_spp = 1 / spp computed on the host); pass 0
+   clears the image. */
+__kernel void rk_dr_camera(const rk_camera cam, __global rk_path_ray* queue, __global float4* image,
+                           const ulong seed, const uint sample, const uint spp, const uint grid_m,
+                           const float inv_m, const float inv_spp, const uint jitter) {
     const uint i = (uint)get_global_id(0);
     if (i >= cam.width * cam.height) return;
     const uint y = i / cam.width;
     const uint x = i - y * cam.width;
+    rk_rng rng;
+    rng.state = rk_hash_seed(seed, (ulong)i, (ulong)sample);
+    const float r1 = jitter ? rk_rng_float(&rng) : 0.5f;
+    const float r2 = jitter ? rk_rng_float(&rng) : 0.5f;
+    float jx, jy;
+    if (grid_m != 0u) {
+        jx = ((float)(sample % grid_m) + r1) * inv_m;
+        jy = ((float)(sample / grid_m) + r2) * inv_m;
+    } else {
+        jx = ((float)sample + r1) * inv_spp;
+        jy = ((float)rk_nrooks_column(seed, (ulong)i, sample, spp) + r2) * inv_spp;
+    }
     rk_path_ray r;
-    r.ray = rk_camera_ray(&cam, x, y, 0.5f, 0.5f);
+    r.ray = rk_camera_ray(&cam, x, y, jx, jy);
     r.weight[0] = 1.0f; r.weight[1] = 1.0f; r.weight[2] = 1.0f;
     r.pixel = i;
     r.depth = 0u;
     r.kind = 0u;
-    r.pad0 = 0u;
-    r.pad1 = 0u;
+    r.rng = rng.state;
     queue[i] = r;
-    image[i] = (float4)(0.0f);
+    if (sample == 0u) image[i] = (float4)(0.0f);
 }
 
 #define RK_ALPHA_ARGS __global const rk_material* materials, __global const uint* material_ids, \
@@ -482,15 +628,24 @@ __kernel void rk_dr_camera(const rk_camera cam, __global rk_path_ray* queue, __g
     const rk_render_settings set
 #define RK_ALPHA_SCENE const rk_alpha_scene a = {materials, material_ids, texcoords, textures, texels, set}
 
+/* Closest hits of queue[0 .. n); with RK_DR_STEPS (defined for hooks that declare
+   traversal_steps) also the traversal steps of each ray into steps[i]. */
 __kernel void rk_dr_closest(__global const rk_node* nodes, __global const uint* prim_ids,
                             __global const rk_triangle* tris, __global const float* pos, const uint node_count,
-                            __global const rk_path_ray* queue, __global rk_hit* hits, const uint n, RK_ALPHA_ARGS) {
+                            __global const rk_path_ray* queue, __global rk_hit* hits, __global uint* steps,
+                            const uint n, RK_ALPHA_ARGS) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
     RK_ALPHA_SCENE;
     const rk_ray r = queue[i].ray;
     rk_hit h = rk_miss();
-    if (rk_dr_trace(nodes, prim_ids, tris, pos, node_count, &r, 0, &h, &a) && h.prim != RK_INVALID) h.inst = 0u;
+#ifdef RK_DR_STEPS
+    uint st = 0u;
+    if (rk_dr_trace(nodes, prim_ids, tris, pos, node_count, &r, 0, &h, &a, &st) && h.prim != RK_INVALID) h.inst = 0u;
+    steps[i] = st;
+#else
+    if (rk_dr_trace(nodes, prim_ids, tris, pos, node_count, &r, 0, &h, &a, 0) && h.prim != RK_INVALID) h.inst = 0u;
+#endif
     hits[i] = h;
 }
 
@@ -502,7 +657,7 @@ __kernel void rk_dr_shadow(__global const rk_node* nodes, __global const uint* p
     RK_ALPHA_SCENE;
     const rk_shadow_ray s = queue[i];
     rk_hit h = rk_miss();
-    if (rk_dr_trace(nodes, prim_ids, tris, pos, node_count, &s.ray, 1, &h, &a)) return;
+    if (rk_dr_trace(nodes, prim_ids, tris, pos, node_count, &s.ray, 1, &h, &a, 0)) return;
     __global float* px = image + (size_t)4 * s.pixel;
     rk_atomic_add_float(px + 0, s.color[0]);
     rk_atomic_add_float(px + 1, s.color[1]);
@@ -512,7 +667,8 @@ __kernel void rk_dr_shadow(__global const rk_node* nodes, __global const uint* p
 
 /// The shade kernel of hook @NAME@ (the host replaces @NAME@ by the hook's name).
 inline constexpr const char* kShadeStage = R"CLC(
-__kernel void rk_dr_shade_@NAME@(__global const rk_path_ray* queue, __global const rk_hit* hits, const uint n,
+__kernel void rk_dr_shade_@NAME@(__global const rk_path_ray* queue, __global const rk_hit* hits,
+                                 __global const uint* steps, const uint n,
                                  __global const rk_triangle* tris, __global const float* pos,
                                  __global const float* normals, __global const float* texcoords,
                                  __global const uint* material_ids, __global const rk_material* materials,
@@ -541,6 +697,13 @@ __kernel void rk_dr_shade_@NAME@(__global const rk_path_ray* queue, __global con
     ctx.depth = path.depth;
     ctx.rays_left = max_rays;
     ctx.shadows_left = max_shadows;
+    ctx.rng.state = path.rng;
+#ifdef RK_DR_STEPS
+    ctx.steps = steps[i];
+#else
+    ctx.steps = 0u;
+#endif
+    ctx.alpha_before = path.depth == 0u ? image[(size_t)4 * path.pixel + 3] : 0.0f;
     rk_surface s;
     s.p = s.ng = s.ns = s.d = s.base = (float3)(0.0f);
     s.uv = (float2)(0.0f);
@@ -681,6 +844,59 @@ void rk_whitted(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const r
         if (!(dot(rdir, s->ng) > 0.0f)) rdir = d - s->ng * (2.0f * dot(d, s->ng));
         rk_emit_ray(ctx, rk_offset_origin(s->p, s->ng), rdir, wr, 1u);
     }
+}
+)CLC";
+
+inline constexpr const char* kShadeAo = R"CLC(typedef struct {
+    float pad;
+} rk_ao_params;
+
+/* raykit::detail::basis: an orthonormal basis (t, b) around unit n (Duff et al. 2017). */
+RK_INLINE void rk_basis(float3 n, float3* t, float3* b) {
+    const float sign = copysign(1.0f, n.z);
+    const float a = -1.0f / (sign + n.z);
+    const float bb = n.x * n.y * a;
+    *t = (float3)(1.0f + sign * n.x * n.x * a, sign * bb, -sign * n.x);
+    *b = (float3)(bb, sign + n.y * n.y * a, -n.y);
+}
+
+/* Ambient occlusion, the twin of the CPU's ShaderKind::ao (render/shade.hpp): ao_samples
+   cosine-weighted any-hit rays within ao_radius from the first hit, drawn from the sample's
+   generator in the CPU's order; each unblocked one adds 1 / ao_samples. */
+void rk_ao(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surface* s, rk_ao_params p) {
+    if (hit->prim == RK_INVALID) {
+        rk_add_color(ctx, rk_f3(ctx->set.background));
+        return;
+    }
+    rk_set_alpha(ctx, 1.0f);
+    const uint n = ctx->set.ao_samples;
+    if (n == 0u) {
+        rk_add_color(ctx, (float3)(1.0f));
+        return;
+    }
+    const float3 org = rk_offset_origin(s->p, s->ng);
+    float3 tb, bb;
+    rk_basis(s->ns, &tb, &bb);
+    const float w = 1.0f / (float)n;
+    for (uint i = 0; i < n; ++i) {
+        const float u1 = rk_random(ctx), u2 = rk_random(ctx);
+        const float r = sqrt(u1), phi = 6.28318530717958647692f * u2;
+        const float3 dir = tb * (r * cos(phi)) + bb * (r * sin(phi)) + s->ns * sqrt(1.0f - u1);
+        if (!(dot(dir, s->ng) > 0.0f)) continue;
+        rk_emit_shadow(ctx, org, dir, ctx->set.ao_radius, (float3)(w));
+    }
+}
+)CLC";
+
+/// ShaderKind::debug_cost: the camera ray's traversal steps; the host maps them to colours.
+inline constexpr const char* kShadeDebugCost = R"CLC(typedef struct {
+    float pad;
+} rk_debug_cost_params;
+
+void rk_debug_cost(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surface* s,
+                   rk_debug_cost_params p) {
+    rk_set_alpha(ctx, hit->prim == RK_INVALID ? 0.0f : 1.0f);
+    rk_add_color(ctx, (float3)((float)rk_traversal_steps(ctx)));
 }
 )CLC";
 
