@@ -194,4 +194,16 @@ TEST(Cli, DeviceTraceWritesTheSameHitsAsTheCpu) {
     const Result d = run("info --device");
     EXPECT_EQ(d.code, 0) << d.err;
 }
+
+TEST(Cli, DeviceRenderTakesEveryShaderAndSpp) {
+    const fs::path scene = tmpdir() / "dev_render.obj", png = tmpdir() / "dev_render.png";
+    save_obj(make_icosphere(2), scene);
+    for (const char* shader : {"whitted", "normals", "depth", "ao", "debug-cost"}) {
+        const Result r = run("render " + scene.string() + " " + png.string() +
+                             " --device cl --spp 4 --width 32 --height 24 --shader " + shader);
+        if (r.code != 0 && r.err.find("no OpenCL") != std::string::npos) GTEST_SKIP() << r.err;
+        EXPECT_EQ(r.code, 0) << shader << ": " << r.err;
+        EXPECT_NE(r.out.find(std::string("4 spp, ") + shader), std::string::npos) << r.out;
+    }
+}
 #endif
