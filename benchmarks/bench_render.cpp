@@ -1,6 +1,9 @@
-// benchmarks/bench_render.cpp — CPU renderer frame time (Google Benchmark).
+// benchmarks/bench_render.cpp — renderer frame time, CPU and OpenCL device (Google Benchmark).
 //
-// Cases: render/<scene>/<variant>/spp:<N>/threads:<T>, 640 x 480, one point light.
+// Cases: render/<scene>/<variant>/spp:<N>/threads:<T> (CPU, render_cpu) and
+//        render/<scene>/<variant>/spp:<N>/device:cl (raykit::cl::DeviceRenderer on
+//        raykit::cl::Device::shared(): PoCL's CPU device here; RAYKIT_CL_DEVICE to choose;
+//        built when CMake finds OpenCL), 640 x 480, one point light, the same images.
 //   scene    thesis  RAYKIT_SHARED_DATA_DIR/obj/thesis_scene/Scene.obj (24k triangles, 21 textured
 //                    materials, alpha-tested foliage), camera (20, 8, 24) -> (0, 2.5, 0), fov 45,
 //                    light at (-25, 35, 30)  (the view of docs/thesis_scene.png)
@@ -12,14 +15,21 @@
 //            mirror    full, with every material made a mirror (illum 3, Ks 0.3): one reflection ray
 //                      per hit, so the bounce is exercised (the thesis scene has no reflective material)
 //   N        1, 4 samples per pixel;  T  1, 2 threads
-// Load, BVH build, LeafTriangles and texture loading are done once, outside the timing.
+// Load, BVH build, LeafTriangles, texture loading, the device upload and the device program
+// build (one untimed frame) are done once, outside the timing.
 //
-// Counters: Mrays_s (all rays traced per second of wall time), rays (per frame), and per stage,
-// from one extra untimed frame with RenderSettings::time_stages: trace_ms, shadow_ms, shade_ms
-// (thread time per frame divided by T, i.e. the wall-time share of each stage; shade includes
-// camera rays and texture lookups).
+// Counters (per frame): Mrays_s (all rays traced per second of wall time), rays, and per stage
+//   CPU     from one extra untimed frame with RenderSettings::time_stages: trace_ms, shadow_ms,
+//           shade_ms (thread time per frame divided by T, i.e. the wall-time share of each
+//           stage; shade includes camera rays and texture lookups)
+//   device  means over the timed frames, from the queue's profiling events: camera_ms (camera
+//           kernel), trace_ms (closest hit), shade_ms (ray hook), shadow_ms (any hit), and
+//           resolve_ms (read back, 1/spp; host)
+// and per bounce b = 0, 1 (bounce 0: camera rays and their shadow rays; 1: reflection rays and
+// theirs): b<b>_rays and b<b>_Mrays_s = rays of that bounce per second of its closest- and
+// any-hit time (CPU: thread time / T; device: kernel time).
 //
-//   build/benchmarks/bench_render --benchmark_out=bench_render.json --benchmark_out_format=json
+//   build-bench-render/benchmarks/bench_render --benchmark_out=docs/bench_render.json --benchmark_out_format=json
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
@@ -31,6 +41,10 @@
 #include "raykit.hpp"
 #include "raykit/io/obj.hpp"
 #include "raykit/render/render_cpu.hpp"
+#if defined(RAYKIT_BENCH_HAVE_CL)
+#include "raykit/cl.hpp"
+#include "raykit/cl/render.hpp"
+#endif
 
 #ifndef RAYKIT_SHARED_DATA_DIR
 #define RAYKIT_SHARED_DATA_DIR "../shared/data"
@@ -86,6 +100,26 @@ const BenchScene* bench_scene(const std::string& name, bool mirror) {
     return (cache[key] = std::move(s)).get();
 }
 
+RenderSettings settings(const std::string& variant, unsigned spp, unsigned threads) {
+    RenderSettings set;
+    set.spp = spp;
+    set.threads = threads;
+    set.shade.max_depth = 1;
+    if (variant == "primary") set.shade.shader = ShaderKind::depth;
+    if (variant == "noshadow") set.shade.shadows = false;
+    return set;
+}
+
+/// b<b>_rays and b<b>_Mrays_s for the bounces that traced rays (the first two).
+void bounce_counters(benchmark::State& state, const std::uint64_t* rays, const double* ms) {
+    for (unsigned b = 0; b < 2; ++b) {
+        if (rays[b] == 0) continue;
+        const std::string k = "b" + std::to_string(b);
+        state.counters[k + "_rays"] = double(rays[b]);
+        state.counters[k + "_Mrays_s"] = ms[b] > 0.0 ? double(rays[b]) / (ms[b] * 1e3) : 0.0;
+    }
+}
+
 void run(benchmark::State& state, const std::string& scene, const std::string& variant, unsigned spp,
          unsigned threads) {
     const BenchScene* s = bench_scene(scene, variant == "mirror");
@@ -93,12 +127,7 @@ void run(benchmark::State& state, const std::string& scene, const std::string& v
         state.SkipWithError((scene + ": data file not found under " RAYKIT_SHARED_DATA_DIR).c_str());
         return;
     }
-    RenderSettings set;
-    set.spp = spp;
-    set.threads = threads;
-    set.shade.max_depth = 1;
-    if (variant == "primary") set.shade.shader = ShaderKind::depth;
-    if (variant == "noshadow") set.shade.shadows = false;
+    const RenderSettings set = settings(variant, spp, threads);
     const ShadeScene view = s->rs.view();
     RenderStats st;
     std::uint64_t rays = 0;
@@ -117,22 +146,81 @@ void run(benchmark::State& state, const std::string& scene, const std::string& v
     state.counters["trace_ms"] = ps.trace_thread_ms / ps.threads;
     state.counters["shadow_ms"] = ps.shadow_thread_ms / ps.threads;
     state.counters["shade_ms"] = ps.shade_thread_ms / ps.threads;
+    double bounce_ms[kBounceSlots];
+    for (unsigned b = 0; b < kBounceSlots; ++b) bounce_ms[b] = ps.bounce_thread_ms[b] / ps.threads;
+    bounce_counters(state, ps.bounce_rays, bounce_ms);
 }
+
+#if defined(RAYKIT_BENCH_HAVE_CL)
+/// The device renderer of a scene, made once (upload) per (scene, mirror) pair.
+raykit::cl::DeviceRenderer* device_renderer(const std::string& name, bool mirror, const BenchScene& s) {
+    raykit::cl::Device& dev = raykit::cl::Device::shared();  // made first, so it outlives the cache
+    static std::map<std::pair<std::string, bool>, std::unique_ptr<raykit::cl::DeviceRenderer>> cache;
+    auto& r = cache[std::make_pair(name, mirror)];
+    if (!r) r = std::make_unique<raykit::cl::DeviceRenderer>(dev, s.rs.view());
+    return r.get();
+}
+
+void run_device(benchmark::State& state, const std::string& scene, const std::string& variant, unsigned spp) {
+    const BenchScene* s = bench_scene(scene, variant == "mirror");
+    if (!s) {
+        state.SkipWithError((scene + ": data file not found under " RAYKIT_SHARED_DATA_DIR).c_str());
+        return;
+    }
+    raykit::cl::DeviceRenderer* r = nullptr;
+    try {
+        r = device_renderer(scene, variant == "mirror", *s);
+    } catch (const std::exception& e) {
+        state.SkipWithError((std::string("no OpenCL device: ") + e.what()).c_str());
+        return;
+    }
+    const RenderSettings set = settings(variant, spp, 0);
+    (void)r->render(s->cam, set);  // builds the program, warms the queues
+    raykit::cl::DeviceRenderStats st, sum;
+    std::uint64_t rays = 0, frames = 0;
+    for (auto _ : state) {
+        Image img = r->render(s->cam, set, &st);
+        benchmark::DoNotOptimize(img.pixels.data());
+        rays += st.total();
+        ++frames;
+        sum.camera_ms += st.camera_ms, sum.trace_ms += st.trace_ms, sum.shade_ms += st.shade_ms;
+        sum.shadow_ms += st.shadow_ms, sum.resolve_ms += st.resolve_ms;
+        for (unsigned b = 0; b < kBounceSlots; ++b) sum.bounce_ms[b] += st.bounce_ms[b];
+    }
+    const double f = frames ? 1.0 / double(frames) : 0.0;
+    state.counters["Mrays_s"] = benchmark::Counter(double(rays) * 1e-6, benchmark::Counter::kIsRate);
+    state.counters["rays"] = double(st.total());
+    state.counters["camera_ms"] = sum.camera_ms * f;
+    state.counters["trace_ms"] = sum.trace_ms * f;
+    state.counters["shade_ms"] = sum.shade_ms * f;
+    state.counters["shadow_ms"] = sum.shadow_ms * f;
+    state.counters["resolve_ms"] = sum.resolve_ms * f;
+    double bounce_ms[kBounceSlots];
+    for (unsigned b = 0; b < kBounceSlots; ++b) bounce_ms[b] = sum.bounce_ms[b] * f;
+    bounce_counters(state, st.bounce_rays, bounce_ms);
+}
+#endif
 
 const bool registered = [] {
     for (const char* scene : {"thesis", "bunny"})
         for (const char* variant : {"primary", "noshadow", "full", "mirror"})
-            for (unsigned spp : {1u, 4u})
-                for (unsigned threads : {1u, 2u}) {
-                    const std::string name = std::string("render/") + scene + "/" + variant + "/spp:" +
-                                             std::to_string(spp) + "/threads:" + std::to_string(threads);
-                    benchmark::RegisterBenchmark(name.c_str(), [=](benchmark::State& st) {
-                        run(st, scene, variant, spp, threads);
-                    })
+            for (unsigned spp : {1u, 4u}) {
+                const std::string base =
+                    std::string("render/") + scene + "/" + variant + "/spp:" + std::to_string(spp);
+                for (unsigned threads : {1u, 2u})
+                    benchmark::RegisterBenchmark((base + "/threads:" + std::to_string(threads)).c_str(),
+                                                 [=](benchmark::State& st) { run(st, scene, variant, spp, threads); })
                         ->Unit(benchmark::kMillisecond)
                         ->UseRealTime()
                         ->MinTime(spp == 1 ? 1.0 : 2.0);
-                }
+#if defined(RAYKIT_BENCH_HAVE_CL)
+                benchmark::RegisterBenchmark((base + "/device:cl").c_str(),
+                                             [=](benchmark::State& st) { run_device(st, scene, variant, spp); })
+                    ->Unit(benchmark::kMillisecond)
+                    ->UseRealTime()
+                    ->MinTime(spp == 1 ? 1.0 : 2.0);
+#endif
+            }
     return true;
 }();
 

@@ -497,6 +497,7 @@ public:
             st.bounces = std::max(st.bounces, depth);
             if (set.progress) set.progress(pass + 1, set.spp);
         }
+        dev.finish();  // the last shadow launch, so that resolve_ms is the read-back alone
         const auto t_resolve = Clock::now();
         std::vector<float> px(n_pixels * 4);
         image_.read(dev, std::span<float>(px));
