@@ -1,12 +1,12 @@
 // benchmarks/bench_trace.cpp — single-ray closest-hit and any-hit throughput, raykit vs Embree 3.
 //
-// Cases: trace/<scene>/<rays>/<closest|any>/<raykit|wide|embree>/threads:<T>
+// Cases: trace/<scene>/<rays>/<closest|any>/<raykit|wide|wide8|embree>/threads:<T>
 //   scene   bunny, torus100k, torus1M            (common.hpp)
 //   rays    primary, random, 262 144 rays each   (common.hpp; any-hit uses the same rays, tmax = inf)
 //   T       1, 2 std::threads, static round-robin chunks of 256 rays (common.hpp trace_parallel)
 // raykit: BinnedSahBuilder with its default Config, intersect_closest / intersect_any
-// (watertight triangle test) on the binary Bvh; wide: the same tree collapsed to a
-// WideBvh (bvh/wide.hpp, 4 children per node), same leaves, same answers. Embree: one default-config device, one scene per mesh with
+// (watertight triangle test) on the binary Bvh; wide / wide8: the same tree collapsed
+// to a WideBvh / WideBvh8 (bvh/wide.hpp, 4 / 8 children per node), same leaves, same answers. Embree: one default-config device, one scene per mesh with
 // one RTC_GEOMETRY_TYPE_TRIANGLE geometry, RTC_BUILD_QUALITY_MEDIUM, rtcIntersect1 /
 // rtcOccluded1. Both write one result per ray into the same output arrays. items/s = rays/s.
 //
@@ -35,7 +35,7 @@ using rkbench::Scene;
 
 constexpr double kMinTime = 0.5;  // seconds per case
 
-enum class Lib { raykit, wide, embree };
+enum class Lib { raykit, wide, wide8, embree };
 
 struct Outputs {
     std::vector<float> t;
@@ -177,6 +177,13 @@ void BM_trace(benchmark::State& state, std::string scene_name, std::string set, 
             benchmark::ClobberMemory();
         }
         state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
+    } else if (lib == Lib::wide8) {
+        const raykit::WideBvh8& wide = rkbench::raykit_wide8_bvh(*s);
+        for (auto _ : state) {
+            trace_raykit(*s, wide, rays, any, threads, out);
+            benchmark::ClobberMemory();
+        }
+        state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
     } else if (lib == Lib::wide) {
         const raykit::WideBvh& wide = rkbench::raykit_wide_bvh(*s);
         for (auto _ : state) {
@@ -209,7 +216,7 @@ void BM_trace(benchmark::State& state, std::string scene_name, std::string set, 
 }
 
 const bool registered = [] {
-    std::vector<Lib> libs{Lib::raykit, Lib::wide};
+    std::vector<Lib> libs{Lib::raykit, Lib::wide, Lib::wide8};
 #ifdef RAYKIT_HAVE_EMBREE
     libs.push_back(Lib::embree);
 #endif
@@ -219,7 +226,7 @@ const bool registered = [] {
                 for (unsigned threads : {1u, 2u})
                     for (Lib lib : libs) {
                         const std::string name = "trace/" + sc + "/" + set + "/" + (any ? "any" : "closest") + "/" +
-                                                 (lib == Lib::raykit ? "raykit" : lib == Lib::wide ? "wide" : "embree") +
+                                                 (lib == Lib::raykit ? "raykit" : lib == Lib::wide ? "wide" : lib == Lib::wide8 ? "wide8" : "embree") +
                                                  "/threads:" + std::to_string(threads);
                         benchmark::RegisterBenchmark(name.c_str(), BM_trace, sc, set, any, lib, threads)
                             ->UseRealTime()

@@ -206,6 +206,16 @@ inline const raykit::WideBvh& raykit_wide_bvh(const Scene& s) {
     return *slot;
 }
 
+/// raykit_bvh(s) collapsed to an 8-wide tree, built once.
+inline const raykit::WideBvh8& raykit_wide8_bvh(const Scene& s) {
+    const raykit::Bvh& bvh = raykit_bvh(s);
+    static std::map<std::string, std::unique_ptr<raykit::WideBvh8>> cache;
+    std::lock_guard lock(detail::cache_mutex());
+    auto& slot = cache[s.name];
+    if (!slot) slot = std::make_unique<raykit::WideBvh8>(raykit::WideBvh8::collapse(bvh));
+    return *slot;
+}
+
 /// fn(begin, end) over [0, n) in chunks of kChunkRays dealt round-robin to `threads` threads.
 template <class Fn>
 void trace_parallel(std::size_t n, unsigned threads, Fn&& fn) {

@@ -25,8 +25,10 @@ std::size_t expect_matches_brute_force(const Mesh& m, const Bvh& bvh, const std:
     std::size_t bad = 0;
     // the same tree collapsed to 4-wide nodes must give the same answers
     const WideBvh wide = WideBvh::collapse(bvh);
+    const WideBvh8 wide8 = WideBvh8::collapse(bvh);
     if (assert_all) {
         EXPECT_EQ(wide.validate(primitive_refs(m).boxes), "");
+        EXPECT_EQ(wide8.validate(primitive_refs(m).boxes), "");
     }
     for (std::size_t i = 0; i < rays.size(); ++i) {
         const Hit h = intersect_closest<Test>(m, bvh, rays[i]);
@@ -34,8 +36,11 @@ std::size_t expect_matches_brute_force(const Mesh& m, const Bvh& bvh, const std:
         const bool any = intersect_any<Test>(m, bvh, rays[i]);
         const Hit w = intersect_closest<Test>(m, wide, rays[i]);
         const bool wany = intersect_any<Test>(m, wide, rays[i]);
+        const Hit w8 = intersect_closest<Test>(m, wide8, rays[i]);
+        const bool w8any = intersect_any<Test>(m, wide8, rays[i]);
         if (h.prim != o.prim || h.t != o.t || any != o.valid() || w.prim != o.prim || w.t != o.t || w.u != h.u ||
-            w.v != h.v || wany != any) {
+            w.v != h.v || wany != any || w8.prim != o.prim || w8.t != o.t || w8.u != h.u || w8.v != h.v ||
+            w8any != any) {
             if (++bad <= 5 && assert_all)
                 ADD_FAILURE() << "ray " << i << " org (" << rays[i].org.x << ", " << rays[i].org.y << ", "
                               << rays[i].org.z << ") dir (" << rays[i].dir.x << ", " << rays[i].dir.y << ", "
@@ -429,14 +434,15 @@ TEST(WideBvh, EmptyOneTriangleAndLeafRoot) {
 /// The SSE box test must make the scalar test's decisions, bit for bit, on
 /// the inputs that break slab tests: ±0 and tiny direction components, origins
 /// on a box plane (0·inf = NaN), empty and flat boxes, huge coordinates.
-TEST(WideBvh, SimdBoxTestEqualsScalarOnHardCases) {
+template <int W>
+void simd_box_test_equals_scalar() {
     std::mt19937_64 rng(99);
     std::uniform_real_distribution<float> U(-2.0f, 2.0f);
     const float specials[] = {0.0f, -0.0f, 1e-30f, -1e-30f, 1.0f, -1.0f, 1e30f};
     std::size_t checked = 0, hits = 0;
     for (int iter = 0; iter < 20000; ++iter) {
-        WideNode n;
-        for (int c = 0; c < WideNode::kWidth; ++c) {
+        WideNodeT<W> n;
+        for (int c = 0; c < W; ++c) {
             AABB b;
             const vec3 p(U(rng), U(rng), U(rng)), q(U(rng), U(rng), U(rng));
             b.min = glm::min(p, q);
@@ -452,16 +458,16 @@ TEST(WideBvh, SimdBoxTestEqualsScalarOnHardCases) {
         r.org = {U(rng), U(rng), U(rng)};
         for (int a = 0; a < 3; ++a) {
             r.dir[a] = (rng() % 4 == 0) ? specials[rng() % 7] : U(rng);
-            if (rng() % 5 == 0) r.org[a] = n.planes[2 * a + (rng() % 2)][rng() % 4];  // on a plane
+            if (rng() % 5 == 0) r.org[a] = n.planes[2 * a + (rng() % 2)][rng() % W];  // on a plane
         }
         r.tmin = (rng() % 3 == 0) ? 0.5f : 0.0f;
         r.tmax = (rng() % 3 == 0) ? 1.5f : kInf;
         const WideSlabRay wr(r);
-        alignas(16) float ts[4], tv[4];
+        alignas(32) float ts[W], tv[W];
         const unsigned ms = wr.test_scalar(n, r.tmin, r.tmax, ts);
         const unsigned mv = wr.test(n, r.tmin, r.tmax, tv);
         ASSERT_EQ(ms, mv) << "iteration " << iter;
-        for (int c = 0; c < 4; ++c) {
+        for (int c = 0; c < W; ++c) {
             if (ms >> c & 1u) {
                 ASSERT_EQ(ts[c], tv[c]) << "iteration " << iter << " child " << c;
                 ++hits;
@@ -476,12 +482,34 @@ TEST(WideBvh, SimdBoxTestEqualsScalarOnHardCases) {
                 ASSERT_EQ(tb, ts[c]);
             }
         }
-        for (int c = 0; c < 4; ++c)
+        for (int c = 0; c < W; ++c)
             if (n.unused(c)) {
                 ASSERT_FALSE(ms >> c & 1u) << "an unused slot was entered";
             }
         ++checked;
     }
     EXPECT_GT(hits, checked / 10);  // the cases are not all misses
-    std::printf("[ info ] %zu boxes entered in %zu 4-wide tests\n", hits, checked);
+    std::printf("[ info ] %zu boxes entered in %zu %d-wide tests\n", hits, checked, W);
+}
+
+TEST(WideBvh, SimdBoxTestEqualsScalarOnHardCases) {
+    simd_box_test_equals_scalar<4>();
+    simd_box_test_equals_scalar<8>();
+}
+
+TEST(WideBvh, EightWideCollapse) {
+    const Mesh m = make_bumpy_torus(20000);
+    const Bvh bvh = build(m);
+    const WideBvh w4 = WideBvh::collapse(bvh);
+    const WideBvh8 w8 = WideBvh8::collapse(bvh);
+    EXPECT_EQ(w8.validate(primitive_refs(m).boxes), "");
+    EXPECT_LE(w8.depth(), w4.depth());
+    EXPECT_LT(w8.nodes.size(), w4.nodes.size());
+    TraversalStats s4, s8;
+    for (const Ray& r : random_rays(m, 2000, 23)) {
+        const Hit a = intersect_closest(m, w4, r, &s4), b = intersect_closest(m, w8, r, &s8);
+        ASSERT_EQ(a.prim, b.prim);
+        ASSERT_EQ(a.t, b.t);
+    }
+    EXPECT_LT(s8.nodes, s4.nodes);
 }

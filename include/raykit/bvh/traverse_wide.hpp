@@ -1,11 +1,13 @@
-// raykit/bvh/traverse_wide.hpp — ordered single-ray traversal of a WideBvh.
+// raykit/bvh/traverse_wide.hpp — ordered single-ray traversal of a WideBvh / WideBvh8.
 //
 // traverse<Mode>(wide, ray, tmax, leaf) has the contract of the binary
 // traverse() in bvh/traverse.hpp (same leaf callable, same ClosestHit/AnyHit
-// modes, same TraversalStats where `nodes` counts wide nodes): at each node
-// the four child boxes are slab-tested in one SSE operation, the hit children
-// are sorted by entry distance, the nearest is visited and the others pushed
-// far-to-near; a popped entry beyond the current tmax is skipped.
+// modes, same TraversalStats where `nodes` counts wide nodes): the root box is
+// tested first, then at each node the child boxes are slab-tested in one SSE
+// (4 children) or AVX (8 children) operation; for closest hits the entered
+// children are sorted by entry distance, the nearest is visited and the
+// others pushed far-to-near, and a popped entry beyond the current tmax is
+// skipped; for any hit they are pushed unsorted.
 //
 // The 4-wide box test makes exactly the decisions of the binary slab test
 // (intersect/slab.hpp): the same (plane − origin)·(1/d) distances, NaN lanes
@@ -15,8 +17,8 @@
 // gives the same float because rounding is monotone. So a WideBvh collapsed
 // from a Bvh visits the same leaves a ray can hit and returns the same answer.
 //
-// Stack: at most 3 entries per wide level, and a wide tree is no deeper than
-// its binary tree (≤ RAYKIT_BVH_MAX_DEPTH for raykit's builders); a deeper
+// Stack: at most W − 1 entries per wide level, and a wide tree is no deeper
+// than its binary tree (≤ RAYKIT_BVH_MAX_DEPTH for raykit's builders); a deeper
 // tree from elsewhere makes traverse throw instead of overflowing.
 #pragma once
 
@@ -34,16 +36,24 @@
 #include <emmintrin.h>
 #define RAYKIT_WIDE_SSE 1
 #endif
+#if defined(__AVX__) && !defined(RAYKIT_NO_SIMD)
+#include <immintrin.h>
+#define RAYKIT_WIDE_AVX 1
+#endif
 
 namespace raykit {
 
-/// Per-ray state of the 4-wide slab test. test() uses SSE where the target
-/// has it; test_scalar() is the plain-C++ reference it is tested against.
+/// Per-ray state of the wide slab test. test() uses SSE (4 lanes) / AVX (8
+/// lanes) where the target has them; test_scalar() is the plain-C++ reference
+/// it is tested against.
 struct WideSlabRay {
     int near_row[3], far_row[3];  ///< WideNode::planes rows of the near/far planes per axis
     float org[3], inv[3];
 #if RAYKIT_WIDE_SSE
     __m128 org4[3], inv4[3];
+#endif
+#if RAYKIT_WIDE_AVX
+    __m256 org8[3], inv8[3];
 #endif
 
     explicit WideSlabRay(const Ray& r) noexcept {
@@ -59,11 +69,34 @@ struct WideSlabRay {
             org4[a] = _mm_set1_ps(o[a]);
             inv4[a] = _mm_set1_ps(v[a]);
 #endif
+#if RAYKIT_WIDE_AVX
+            org8[a] = _mm256_set1_ps(o[a]);
+            inv8[a] = _mm256_set1_ps(v[a]);
+#endif
         }
     }
 
-    /// Tests the four child boxes of `n` against [tmin, tmax]; returns a bit
-    /// per child entered and writes the entry distances to t[0..3] (16-byte aligned).
+    /// Tests the child boxes of `n` against [tmin, tmax]; returns a bit per
+    /// child entered and writes the entry distances to t[0..W) (32-byte aligned).
+    RAYKIT_INLINE unsigned test(const WideNode8& n, float tmin, float tmax, float* RAYKIT_RESTRICT t) const noexcept {
+#if RAYKIT_WIDE_AVX
+        const __m256 tnx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.planes[near_row[0]]), org8[0]), inv8[0]);
+        const __m256 tny = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.planes[near_row[1]]), org8[1]), inv8[1]);
+        const __m256 tnz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.planes[near_row[2]]), org8[2]), inv8[2]);
+        const __m256 tfx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.planes[far_row[0]]), org8[0]), inv8[0]);
+        const __m256 tfy = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.planes[far_row[1]]), org8[1]), inv8[1]);
+        const __m256 tfz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.planes[far_row[2]]), org8[2]), inv8[2]);
+        const __m256 tn = _mm256_max_ps(tnx, _mm256_max_ps(tny, _mm256_max_ps(tnz, _mm256_set1_ps(tmin))));
+        const __m256 tf =
+            _mm256_mul_ps(_mm256_min_ps(tfx, _mm256_min_ps(tfy, _mm256_min_ps(tfz, _mm256_set1_ps(tmax)))),
+                          _mm256_set1_ps(kSlabExitScale));
+        _mm256_store_ps(t, tn);
+        return static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ)));
+#else
+        return test_scalar(n, tmin, tmax, t);
+#endif
+    }
+
     RAYKIT_INLINE unsigned test(const WideNode& n, float tmin, float tmax, float* RAYKIT_RESTRICT t) const noexcept {
 #if RAYKIT_WIDE_SSE
         const __m128 tnx = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.planes[near_row[0]]), org4[0]), inv4[0]);
@@ -83,9 +116,10 @@ struct WideSlabRay {
 #endif
     }
 
-    unsigned test_scalar(const WideNode& n, float tmin, float tmax, float* RAYKIT_RESTRICT t) const noexcept {
+    template <int W>
+    unsigned test_scalar(const WideNodeT<W>& n, float tmin, float tmax, float* RAYKIT_RESTRICT t) const noexcept {
         unsigned mask = 0;
-        for (int i = 0; i < WideNode::kWidth; ++i) {
+        for (int i = 0; i < W; ++i) {
             float t0 = tmin, t1 = tmax;
             for (int a = 0; a < 3; ++a) {
                 t0 = robust_max((n.planes[near_row[a]][i] - org[a]) * inv[a], t0);
@@ -99,17 +133,22 @@ struct WideSlabRay {
     }
 };
 
-template <class Mode = ClosestHit, class LeafFn, class Stats = std::nullptr_t>
-bool traverse(const WideBvh& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
+template <class Mode = ClosestHit, int W, class LeafFn, class Stats = std::nullptr_t>
+bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
     if (bvh.nodes.empty()) return false;
-    const WideNode* RAYKIT_RESTRICT nodes = bvh.nodes.data();
+    const WideNodeT<W>* RAYKIT_RESTRICT nodes = bvh.nodes.data();
     const WideSlabRay wr(ray);
+    {
+        float t_root;  // the binary traversal's first test, with the same result
+        if (!slab_test(&bvh.bounds.min.x, &bvh.bounds.max.x, ray.org, RayInv(ray.dir), ray.tmin, tmax, t_root))
+            return false;
+    }
 
     struct Entry {
         std::uint32_t index, count;  // count 0: a wide node; else a leaf's prim_ids range
         float t;
     };
-    constexpr int kStack = 3 * RAYKIT_BVH_MAX_DEPTH + 1;
+    constexpr int kStack = (W - 1) * RAYKIT_BVH_MAX_DEPTH + 1;
     Entry stack[kStack];
     int sp = 0;
     Entry cur{0, 0, 0.0f};
@@ -117,43 +156,69 @@ bool traverse(const WideBvh& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, St
     for (;;) {
         if (cur.count == 0) {
             if constexpr (!std::is_same_v<Stats, std::nullptr_t>) ++stats->nodes;
-            const WideNode& n = nodes[cur.index];
-            alignas(16) float td[4];
+            const WideNodeT<W>& n = nodes[cur.index];
+            alignas(32) float td[W];
             unsigned mask = wr.test(n, ray.tmin, tmax, td);
-            if (mask) {
-                const int i0 = std::countr_zero(mask);
-                mask &= mask - 1;
-                if (!mask) {
-                    cur = {n.index[i0], n.count[i0], td[i0]};
-                    continue;
-                }
-                if (sp + 3 > kStack) throw std::length_error("raykit::traverse: wide tree deeper than RAYKIT_BVH_MAX_DEPTH");
-                const int i1 = std::countr_zero(mask);
-                mask &= mask - 1;
-                Entry a{n.index[i0], n.count[i0], td[i0]}, b{n.index[i1], n.count[i1], td[i1]};
-                if (b.t < a.t) std::swap(a, b);
-                if (!mask) {  // two children: push the far one
-                    stack[sp++] = b;
-                    cur = a;
-                    continue;
-                }
-                // three or four: sort by entry distance (stable), push far to near
-                Entry e[4] = {a, b};
-                int k = 2;
-                do {
-                    const int i = std::countr_zero(mask);
+            // One multi-way branch on the number of entered children (random
+            // rays make every such branch unpredictable, so take one, not three).
+            if constexpr (Mode::any_hit) {
+                // any hit: order does not change the answer, so no sorting
+                if (mask) {
+                    if (sp + W - 1 > kStack)
+                        throw std::length_error("raykit::traverse: wide tree deeper than RAYKIT_BVH_MAX_DEPTH");
+                    int i = std::countr_zero(mask);
                     mask &= mask - 1;
-                    const Entry x{n.index[i], n.count[i], td[i]};
-                    int j = k++;
-                    while (j > 0 && e[j - 1].t > x.t) {
-                        e[j] = e[j - 1];
-                        --j;
+                    cur = {n.index[i], n.count[i], td[i]};
+                    while (mask) {
+                        i = std::countr_zero(mask);
+                        mask &= mask - 1;
+                        stack[sp++] = {n.index[i], n.count[i], td[i]};
                     }
-                    e[j] = x;
-                } while (mask);
-                for (int j = k - 1; j >= 1; --j) stack[sp++] = e[j];
-                cur = e[0];
-                continue;
+                    continue;
+                }
+            } else {
+                switch (std::popcount(mask)) {
+                    case 0:
+                        break;
+                    case 1: {
+                        const int i = std::countr_zero(mask);
+                        cur = {n.index[i], n.count[i], td[i]};
+                        continue;
+                    }
+                    case 2: {
+                        if (sp + 1 > kStack)
+                            throw std::length_error("raykit::traverse: wide tree deeper than RAYKIT_BVH_MAX_DEPTH");
+                        const int i0 = std::countr_zero(mask);
+                        const int i1 = std::countr_zero(mask & (mask - 1));
+                        const bool swap = td[i1] < td[i0];  // ties keep slot order
+                        const int a = swap ? i1 : i0, b = swap ? i0 : i1;
+                        stack[sp++] = {n.index[b], n.count[b], td[b]};
+                        cur = {n.index[a], n.count[a], td[a]};
+                        continue;
+                    }
+                    default: {
+                        if (sp + W - 1 > kStack)
+                            throw std::length_error("raykit::traverse: wide tree deeper than RAYKIT_BVH_MAX_DEPTH");
+                        // three or more: insertion sort by entry distance (stable), push far
+                        // to near
+                        Entry e[W];
+                        int k = 0;
+                        do {
+                            const int i = std::countr_zero(mask);
+                            mask &= mask - 1;
+                            const Entry x{n.index[i], n.count[i], td[i]};
+                            int j = k++;
+                            while (j > 0 && e[j - 1].t > x.t) {
+                                e[j] = e[j - 1];
+                                --j;
+                            }
+                            e[j] = x;
+                        } while (mask);
+                        for (int j = k - 1; j >= 1; --j) stack[sp++] = e[j];
+                        cur = e[0];
+                        continue;
+                    }
+                }
             }
         } else {
             if constexpr (!std::is_same_v<Stats, std::nullptr_t>) ++stats->leaves;

@@ -1,22 +1,23 @@
-// raykit/bvh/wide.hpp — a 4-wide BVH collapsed from a binary one, for CPU traversal.
+// raykit/bvh/wide.hpp — a 4- or 8-wide BVH collapsed from a binary one, for CPU traversal.
 //
 //   Bvh bvh = BinnedSahBuilder::build(boxes, centers);   // any builder
-//   WideBvh wide = WideBvh::collapse(bvh);                // or collapse(std::move(bvh))
+//   WideBvh wide = WideBvh::collapse(bvh);                // 4-wide; or collapse(std::move(bvh))
+//   WideBvh8 wide8 = WideBvh8::collapse(bvh);             // 8-wide (one AVX test per node)
 //   Hit h = intersect_closest(mesh, wide, ray);           // scene/trace.hpp
 //
 // The binary Bvh (bvh/node.hpp) stays the canonical tree: every builder makes
 // one, refit updates it, the OpenCL path uploads it. A WideBvh is derived from
 // it in one O(nodes) pass for the CPU's single-ray traversal, where testing
-// four boxes in one SSE operation and walking a tree a third as deep pays:
+// 4 (SSE) or 8 (AVX) boxes in one operation and walking a shallower tree pays:
 // every inner node of the binary tree with inner children is merged with them,
-// the child of largest surface area opened first, until a node has 4 children
+// the child of largest surface area opened first, until a node has W children
 // or only leaves. Leaves are the binary tree's leaves unchanged (same
 // prim_ids ranges), so both trees return the same hits. After a binary refit,
 // collapse again (linear, no SAH work).
 //
-// WideNode is 128 bytes on a 64-byte boundary (two cache lines): the six box
-// planes of the 4 children as structure-of-arrays (lo.x[4], hi.x[4], lo.y[4],
-// ...), then per child an index (a WideNode for inner children, the first
+// WideNode (W = 4) is 128 bytes on a 64-byte boundary (two cache lines),
+// WideNode8 256 bytes: the six box planes of the W children as
+// structure-of-arrays (lo.x[W], hi.x[W], lo.y[W], ...), then per child an index (a WideNode for inner children, the first
 // prim_ids slot for leaves) and a primitive count (0 = inner child). Unused
 // slots have an empty box (lo = +inf, hi = -inf) that no ray can enter, so the
 // traversal needs no per-slot validity check. The wide tree is no deeper than
@@ -39,8 +40,10 @@
 
 namespace raykit {
 
-struct alignas(64) WideNode {
-    static constexpr int kWidth = 4;
+template <int W>
+struct alignas(64) WideNodeT {
+    static_assert(W == 4 || W == 8, "wide nodes have 4 or 8 children");
+    static constexpr int kWidth = W;
     /// Planes as [axis*2 + (0 = lo, 1 = hi)][child].
     float planes[6][kWidth];
     std::uint32_t index[kWidth];  ///< inner child: WideNode index; leaf: first prim_ids slot
@@ -67,9 +70,14 @@ struct alignas(64) WideNode {
         count[i] = 0;
     }
 };
+using WideNode = WideNodeT<4>;   ///< 128 bytes: 4 children, one SSE box test
+using WideNode8 = WideNodeT<8>;  ///< 256 bytes: 8 children, one AVX box test
 static_assert(sizeof(WideNode) == 128 && alignof(WideNode) == 64);
 static_assert(std::is_standard_layout_v<WideNode>);
 static_assert(offsetof(WideNode, planes) == 0 && offsetof(WideNode, index) == 96 && offsetof(WideNode, count) == 112);
+static_assert(sizeof(WideNode8) == 256 && alignof(WideNode8) == 64);
+static_assert(std::is_standard_layout_v<WideNode8>);
+static_assert(offsetof(WideNode8, planes) == 0 && offsetof(WideNode8, index) == 192 && offsetof(WideNode8, count) == 224);
 
 /// std::allocator that aligns to 64 bytes (one WideNode starts each cache line pair).
 template <class T>
@@ -86,25 +94,29 @@ struct CacheLineAllocator {
     }
 };
 
-struct WideBvh {
-    std::vector<WideNode, CacheLineAllocator<WideNode>> nodes;  ///< node 0 is the root
+template <int W>
+struct WideBvhT {
+    using NodeType = WideNodeT<W>;
+    static constexpr int kWidth = W;
+    std::vector<NodeType, CacheLineAllocator<NodeType>> nodes;  ///< node 0 is the root
     std::vector<std::uint32_t> prim_ids;                        ///< as in the binary tree
+    AABB bounds;  ///< the root's box: tested first, so rays that miss the scene touch no node
 
     bool empty() const noexcept { return nodes.empty(); }
     std::size_t memory_bytes() const noexcept {
-        return nodes.size() * sizeof(WideNode) + prim_ids.size() * sizeof(std::uint32_t);
+        return nodes.size() * sizeof(NodeType) + prim_ids.size() * sizeof(std::uint32_t);
     }
 
     /// Collapses a binary tree (copies its prim_ids, 4 bytes per primitive).
-    static WideBvh collapse(const Bvh& bvh) {
-        WideBvh w;
+    static WideBvhT collapse(const Bvh& bvh) {
+        WideBvhT w;
         w.prim_ids = bvh.prim_ids;
         w.build_nodes(bvh);
         return w;
     }
     /// Collapses a binary tree that is no longer needed (takes its prim_ids).
-    static WideBvh collapse(Bvh&& bvh) {
-        WideBvh w;
+    static WideBvhT collapse(Bvh&& bvh) {
+        WideBvhT w;
         w.build_nodes(bvh);
         w.prim_ids = std::move(bvh.prim_ids);
         bvh.nodes.clear();
@@ -117,7 +129,7 @@ struct WideBvh {
         std::vector<int> d(nodes.size(), 0);
         for (std::size_t i = 0; i < nodes.size(); ++i) {
             best = std::max(best, d[i]);
-            for (int c = 0; c < WideNode::kWidth; ++c)
+            for (int c = 0; c < W; ++c)
                 if (nodes[i].count[c] == 0 && !nodes[i].unused(c)) d[nodes[i].index[c]] = d[i] + 1;
         }
         return best;
@@ -133,7 +145,7 @@ struct WideBvh {
         std::string err;
         // bounds of everything below slot c of node i, checked against its box
         const auto below = [&](auto&& self, std::uint32_t i, int c) -> AABB {
-            const WideNode& n = nodes[i];
+            const NodeType& n = nodes[i];
             AABB b;
             if (n.count[c] != 0) {
                 if (std::size_t(n.index[c]) + n.count[c] > prim_ids.size()) {
@@ -153,8 +165,8 @@ struct WideBvh {
                     err = "inner child index " + std::to_string(n.index[c]) + " of node " + std::to_string(i);
                     return b;
                 }
-                const WideNode& child = nodes[n.index[c]];
-                for (int k = 0; k < WideNode::kWidth && err.empty(); ++k) {
+                const NodeType& child = nodes[n.index[c]];
+                for (int k = 0; k < W && err.empty(); ++k) {
                     if (child.unused(k)) {
                         if (!child.box(k).is_empty()) err = "unused slot with a box";
                         continue;
@@ -167,8 +179,8 @@ struct WideBvh {
                 err = "box of node " + std::to_string(i) + " slot " + std::to_string(c) + " does not enclose its children";
             return b;
         };
-        for (int c = 0; c < WideNode::kWidth && err.empty(); ++c) {
-            const WideNode& root = nodes[0];
+        for (int c = 0; c < W && err.empty(); ++c) {
+            const NodeType& root = nodes[0];
             if (root.unused(c)) {
                 if (!root.box(c).is_empty()) err = "unused slot with a box";
                 continue;
@@ -184,7 +196,9 @@ struct WideBvh {
 private:
     void build_nodes(const Bvh& bvh) {
         nodes.clear();
+        bounds = AABB{};
         if (bvh.nodes.empty()) return;
+        bounds = bvh.nodes[0].box;
         const std::size_t n = bvh.nodes.size();
         nodes.reserve(n / 2 + 1);
         const auto check = [&](std::uint32_t i) {
@@ -198,7 +212,7 @@ private:
         nodes.emplace_back();
         const Node& root = bvh.nodes[0];
         if (root.is_leaf()) {
-            for (int c = 0; c < WideNode::kWidth; ++c) nodes[0].clear(c);
+            for (int c = 0; c < W; ++c) nodes[0].clear(c);
             nodes[0].set_box(0, root.box);
             nodes[0].index[0] = root.index;
             nodes[0].count[0] = root.count;
@@ -209,13 +223,13 @@ private:
             const Task task = todo.back();
             todo.pop_back();
             // open the children of largest area until 4 or only leaves
-            std::uint32_t kids[WideNode::kWidth];
+            std::uint32_t kids[W + 1];
             int k = 0;
             const Node& b = bvh.nodes[task.binary];
             check(b.index + 1);
             kids[k++] = b.index;
             kids[k++] = b.index + 1;
-            while (k < WideNode::kWidth) {
+            while (k < W) {
                 int best = -1;
                 float best_area = -1.0f;
                 for (int i = 0; i < k; ++i) {
@@ -232,8 +246,8 @@ private:
                 kids[best + 1] = c.index + 1;
                 ++k;
             }
-            WideNode out;
-            for (int c = 0; c < WideNode::kWidth; ++c) out.clear(c);
+            NodeType out;
+            for (int c = 0; c < W; ++c) out.clear(c);
             for (int i = 0; i < k; ++i) {
                 const Node& c = bvh.nodes[kids[i]];
                 out.set_box(i, c.box);
@@ -251,5 +265,8 @@ private:
         }
     }
 };
+
+using WideBvh = WideBvhT<4>;   ///< 4-wide tree (SSE)
+using WideBvh8 = WideBvhT<8>;  ///< 8-wide tree (AVX; plain C++ without it)
 
 }  // namespace raykit

@@ -67,7 +67,10 @@ struct Watertight {
         const double Ud = double(Cx) * double(By) - double(Cy) * double(Bx);
         const double Vd = double(Ax) * double(Cy) - double(Ay) * double(Cx);
         const double Wd = double(Bx) * double(Ay) - double(By) * double(Ax);
-        if ((Ud < 0.0 || Vd < 0.0 || Wd < 0.0) && (Ud > 0.0 || Vd > 0.0 || Wd > 0.0)) return false;
+        // one branch, not six: random rays make each sign unpredictable
+        const bool neg = (Ud < 0.0) | (Vd < 0.0) | (Wd < 0.0);
+        const bool pos = (Ud > 0.0) | (Vd > 0.0) | (Wd > 0.0);
+        if (neg & pos) return false;
         const double detd = Ud + Vd + Wd;
         if (!(detd != 0.0)) return false;  // degenerate, or NaN
         const float U = static_cast<float>(Ud), V = static_cast<float>(Vd), W = static_cast<float>(Wd);

@@ -56,13 +56,13 @@ struct LeafCorners {
 
 /// `Tree` is the Bvh or WideBvh the copy was made for (same prim_ids).
 template <class Test = DefaultTriangleTest, class Tree, class Stats = std::nullptr_t>
-    requires std::is_same_v<Tree, Bvh> || std::is_same_v<Tree, WideBvh>
+    requires std::is_same_v<Tree, Bvh> || std::is_same_v<Tree, WideBvh> || std::is_same_v<Tree, WideBvh8>
 Hit intersect_closest(const LeafTriangles& lt, const Tree& bvh, const Ray& ray, Stats stats = nullptr) {
     return detail::closest_over_slots<Test>(bvh, ray, detail::LeafCorners{lt.vertices.data()}, stats);
 }
 
 template <class Test = DefaultTriangleTest, class Tree, class Stats = std::nullptr_t>
-    requires std::is_same_v<Tree, Bvh> || std::is_same_v<Tree, WideBvh>
+    requires std::is_same_v<Tree, Bvh> || std::is_same_v<Tree, WideBvh> || std::is_same_v<Tree, WideBvh8>
 bool intersect_any(const LeafTriangles& lt, const Tree& bvh, const Ray& ray, Stats stats = nullptr) {
     return detail::any_over_slots<Test>(bvh, ray, detail::LeafCorners{lt.vertices.data()}, stats);
 }

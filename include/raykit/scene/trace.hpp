@@ -96,16 +96,16 @@ bool intersect_any(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stats s
         bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
 }
 
-/// The same queries on a WideBvh (bvh/wide.hpp) collapsed from a binary tree:
-/// same answers, faster on the CPU.
-template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
-Hit intersect_closest(const MeshView& mesh, const WideBvh& bvh, const Ray& ray, Stats stats = nullptr) {
+/// The same queries on a WideBvh or WideBvh8 (bvh/wide.hpp) collapsed from a
+/// binary tree: same answers, fewer nodes visited.
+template <class Test = DefaultTriangleTest, int W, class Stats = std::nullptr_t>
+Hit intersect_closest(const MeshView& mesh, const WideBvhT<W>& bvh, const Ray& ray, Stats stats = nullptr) {
     return detail::closest_over_slots<Test>(
         bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
 }
 
-template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
-bool intersect_any(const MeshView& mesh, const WideBvh& bvh, const Ray& ray, Stats stats = nullptr) {
+template <class Test = DefaultTriangleTest, int W, class Stats = std::nullptr_t>
+bool intersect_any(const MeshView& mesh, const WideBvhT<W>& bvh, const Ray& ray, Stats stats = nullptr) {
     return detail::any_over_slots<Test>(
         bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
 }
