@@ -34,6 +34,50 @@ RK_INLINE bool rk_closer(const rk_hit* a, const rk_hit* b) {
     return a->prim < b->prim;
 }
 
+/* One inner node of an ordered walk over `base`: slab-tests both children of
+   the node whose first child is `index`; enters the nearer one hit (*cur) and
+   pushes the farther one with its entry distance. Returns 1 when a child is
+   entered, 0 when neither is (pop next), -1 when the stack is full (a tree
+   deeper than RK_MAX_DEPTH, which raykit's builders never make). */
+RK_INLINE int rk_descend(const rk_slab_ray* s, __global const rk_node* base, const uint index, const float tmax,
+                         uint* cur, uint* st_node, float* st_t, int* sp) {
+    float tl, tr;
+    const bool hl = rk_slab(s, base + index, tmax, &tl);
+    const bool hr = rk_slab(s, base + index + 1, tmax, &tr);
+    if (hl && hr) {
+        uint nearc = index, farc = index + 1;
+        float tf = tr;
+        if (tr < tl) {
+            nearc = index + 1;
+            farc = index;
+            tf = tl;
+        }
+        if (*sp == RK_MAX_DEPTH) return -1;
+        st_node[*sp] = farc;
+        st_t[*sp] = tf;
+        ++*sp;
+        *cur = nearc;
+        return 1;
+    }
+    if (hl || hr) {
+        *cur = hl ? index : index + 1;
+        return 1;
+    }
+    return 0;
+}
+
+/* Pops the next entry still in front of tmax into *cur; false when none is left. */
+RK_INLINE bool rk_pop(uint* cur, const uint* st_node, const float* st_t, int* sp, const float tmax) {
+    while (*sp > 0) {
+        --*sp;
+        if (st_t[*sp] <= tmax * RK_SLAB_EXIT_SCALE) {
+            *cur = st_node[*sp];
+            return true;
+        }
+    }
+    return false;
+}
+
 /* Closest hit (any == 0: fills *hit, prim relative to the object, inst
    untouched) or any hit (any != 0) of `ray` limited to [ray->tmin, tmax]
    with one bottom-level tree. Returns true when something was hit. */
@@ -77,41 +121,11 @@ RK_INLINE bool rk_trace_tree(__global const rk_node* restrict nodes, __global co
                 }
             }
         } else {
-            float tl, tr;
-            const bool hl = rk_slab(&s, nodes + index, tmax, &tl);
-            const bool hr = rk_slab(&s, nodes + index + 1, tmax, &tr);
-            if (hl && hr) {
-                uint nearc = index, farc = index + 1;
-                float tf = tr;
-                if (tr < tl) {
-                    nearc = index + 1;
-                    farc = index;
-                    tf = tl;
-                }
-                if (sp == RK_MAX_DEPTH) return found;
-                st_node[sp] = farc;
-                st_t[sp] = tf;
-                ++sp;
-                cur = nearc;
-                continue;
-            }
-            if (hl) {
-                cur = index;
-                continue;
-            }
-            if (hr) {
-                cur = index + 1;
-                continue;
-            }
+            const int step = rk_descend(&s, nodes, index, tmax, &cur, st_node, st_t, &sp);
+            if (step < 0) return found;
+            if (step > 0) continue;
         }
-        for (;;) {
-            if (sp == 0) return found;
-            --sp;
-            if (st_t[sp] <= tmax * RK_SLAB_EXIT_SCALE) {
-                cur = st_node[sp];
-                break;
-            }
-        }
+        if (!rk_pop(&cur, st_node, st_t, &sp, tmax)) return found;
     }
 }
 
@@ -189,41 +203,11 @@ RK_INLINE bool rk_trace_scene(__global const rk_node* top, const uint top_count,
                 }
             }
         } else {
-            float tl, tr;
-            const bool hl = rk_slab(&s, top + index, tmax, &tl);
-            const bool hr = rk_slab(&s, top + index + 1, tmax, &tr);
-            if (hl && hr) {
-                uint nearc = index, farc = index + 1;
-                float tf = tr;
-                if (tr < tl) {
-                    nearc = index + 1;
-                    farc = index;
-                    tf = tl;
-                }
-                if (sp == RK_MAX_DEPTH) return found;
-                st_node[sp] = farc;
-                st_t[sp] = tf;
-                ++sp;
-                cur = nearc;
-                continue;
-            }
-            if (hl) {
-                cur = index;
-                continue;
-            }
-            if (hr) {
-                cur = index + 1;
-                continue;
-            }
+            const int step = rk_descend(&s, top, index, tmax, &cur, st_node, st_t, &sp);
+            if (step < 0) return found;
+            if (step > 0) continue;
         }
-        for (;;) {
-            if (sp == 0) return found;
-            --sp;
-            if (st_t[sp] <= tmax * RK_SLAB_EXIT_SCALE) {
-                cur = st_node[sp];
-                break;
-            }
-        }
+        if (!rk_pop(&cur, st_node, st_t, &sp, tmax)) return found;
     }
 }
 
