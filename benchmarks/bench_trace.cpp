@@ -1,12 +1,13 @@
 // benchmarks/bench_trace.cpp — single-ray closest-hit and any-hit throughput, raykit vs Embree 3.
 //
-// Cases: trace/<scene>/<rays>/<closest|any>/<raykit|wide|wide8|embree>/threads:<T>
+// Cases: trace/<scene>/<rays>/<closest|any>/<raykit|wide|wide8|wide8copy|embree>/threads:<T>
 //   scene   bunny, torus100k, torus1M            (common.hpp)
 //   rays    primary, random, 262 144 rays each   (common.hpp; any-hit uses the same rays, tmax = inf)
 //   T       1, 2 std::threads, static round-robin chunks of 256 rays (common.hpp trace_parallel)
 // raykit: BinnedSahBuilder with its default Config, intersect_closest / intersect_any
 // (watertight triangle test) on the binary Bvh; wide / wide8: the same tree collapsed
-// to a WideBvh / WideBvh8 (bvh/wide.hpp, 4 / 8 children per node), same leaves, same answers. Embree: one default-config device, one scene per mesh with
+// to a WideBvh / WideBvh8 (bvh/wide.hpp, 4 / 8 children per node), same leaves, same answers;
+// wide8copy: WideBvh8 with the opt-in LeafTriangles copy (36 B per triangle, no index chase). Embree: one default-config device, one scene per mesh with
 // one RTC_GEOMETRY_TYPE_TRIANGLE geometry, RTC_BUILD_QUALITY_MEDIUM, rtcIntersect1 /
 // rtcOccluded1. Both write one result per ray into the same output arrays. items/s = rays/s.
 //
@@ -35,7 +36,7 @@ using rkbench::Scene;
 
 constexpr double kMinTime = 0.5;  // seconds per case
 
-enum class Lib { raykit, wide, wide8, embree };
+enum class Lib { raykit, wide, wide8, wide8copy, embree };
 
 struct Outputs {
     std::vector<float> t;
@@ -44,10 +45,9 @@ struct Outputs {
     explicit Outputs(std::size_t n) : t(n), prim(n), occluded(n) {}
 };
 
-template <class Tree>
-void trace_raykit(const Scene& s, const Tree& bvh, const std::vector<raykit::Ray>& rays, bool any,
+template <class Tree, class Triangles>
+void trace_raykit(const Tree& bvh, const Triangles& mesh, const std::vector<raykit::Ray>& rays, bool any,
                   unsigned threads, Outputs& out) {
-    const raykit::MeshView mesh(s.mesh);
     if (any) {
         rkbench::trace_parallel(rays.size(), threads, [&](std::size_t b, std::size_t e) {
             for (std::size_t i = b; i < e; ++i) out.occluded[i] = raykit::intersect_any(mesh, bvh, rays[i]);
@@ -130,8 +130,8 @@ const Check& check(const Scene& s, const std::string& set) {
     const auto& rays = rkbench::rays(s, set);
     const std::size_t n = rays.size();
     Outputs rk(n);
-    trace_raykit(s, rkbench::raykit_bvh(s), rays, false, 0, rk);
-    trace_raykit(s, rkbench::raykit_bvh(s), rays, true, 0, rk);
+    trace_raykit(rkbench::raykit_bvh(s), raykit::MeshView(s.mesh), rays, false, 0, rk);
+    trace_raykit(rkbench::raykit_bvh(s), raykit::MeshView(s.mesh), rays, true, 0, rk);
     std::size_t hits = 0, occ = 0;
     for (std::size_t i = 0; i < n; ++i) {
         hits += rk.prim[i] != raykit::kInvalidIndex;
@@ -173,21 +173,29 @@ void BM_trace(benchmark::State& state, std::string scene_name, std::string set, 
     if (lib == Lib::raykit) {
         const raykit::Bvh& bvh = rkbench::raykit_bvh(*s);
         for (auto _ : state) {
-            trace_raykit(*s, bvh, rays, any, threads, out);
+            trace_raykit(bvh, raykit::MeshView(s->mesh), rays, any, threads, out);
+            benchmark::ClobberMemory();
+        }
+        state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
+    } else if (lib == Lib::wide8copy) {
+        const raykit::WideBvh8& wide = rkbench::raykit_wide8_bvh(*s);
+        const raykit::LeafTriangles& lt = rkbench::raykit_wide8_leaf_triangles(*s);
+        for (auto _ : state) {
+            trace_raykit(wide, lt, rays, any, threads, out);
             benchmark::ClobberMemory();
         }
         state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
     } else if (lib == Lib::wide8) {
         const raykit::WideBvh8& wide = rkbench::raykit_wide8_bvh(*s);
         for (auto _ : state) {
-            trace_raykit(*s, wide, rays, any, threads, out);
+            trace_raykit(wide, raykit::MeshView(s->mesh), rays, any, threads, out);
             benchmark::ClobberMemory();
         }
         state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
     } else if (lib == Lib::wide) {
         const raykit::WideBvh& wide = rkbench::raykit_wide_bvh(*s);
         for (auto _ : state) {
-            trace_raykit(*s, wide, rays, any, threads, out);
+            trace_raykit(wide, raykit::MeshView(s->mesh), rays, any, threads, out);
             benchmark::ClobberMemory();
         }
         state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
@@ -216,7 +224,7 @@ void BM_trace(benchmark::State& state, std::string scene_name, std::string set, 
 }
 
 const bool registered = [] {
-    std::vector<Lib> libs{Lib::raykit, Lib::wide, Lib::wide8};
+    std::vector<Lib> libs{Lib::raykit, Lib::wide, Lib::wide8, Lib::wide8copy};
 #ifdef RAYKIT_HAVE_EMBREE
     libs.push_back(Lib::embree);
 #endif
@@ -226,7 +234,11 @@ const bool registered = [] {
                 for (unsigned threads : {1u, 2u})
                     for (Lib lib : libs) {
                         const std::string name = "trace/" + sc + "/" + set + "/" + (any ? "any" : "closest") + "/" +
-                                                 (lib == Lib::raykit ? "raykit" : lib == Lib::wide ? "wide" : lib == Lib::wide8 ? "wide8" : "embree") +
+                                                 (lib == Lib::raykit      ? "raykit"
+                                                  : lib == Lib::wide      ? "wide"
+                                                  : lib == Lib::wide8     ? "wide8"
+                                                  : lib == Lib::wide8copy ? "wide8copy"
+                                                                          : "embree") +
                                                  "/threads:" + std::to_string(threads);
                         benchmark::RegisterBenchmark(name.c_str(), BM_trace, sc, set, any, lib, threads)
                             ->UseRealTime()
