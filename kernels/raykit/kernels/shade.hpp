@@ -471,7 +471,7 @@ RK_INLINE bool rk_cut_out(const rk_alpha_scene* a, __global const rk_triangle* t
    inner nodes + leaves visited are written there (raykit::TraversalStats nodes + leaves: same
    walk, same order, so the same count). This duplicates rk_trace_tree's walk rather than
    changing it: the plain trace kernels keep their code, and this one is used only when a scene
-   has cut-outs or a hook asks for steps. */
+   has cut-outs or a hook asks for steps. The inner-node step and the pop are trace.hpp's. */
 RK_INLINE bool rk_dr_walk(__global const rk_node* restrict nodes, __global const uint* restrict prim_ids,
                           __global const rk_triangle* restrict tris, __global const float* restrict pos,
                           const uint node_count, const rk_ray* ray, const int any, rk_hit* hit,
@@ -517,43 +517,11 @@ RK_INLINE bool rk_dr_walk(__global const rk_node* restrict nodes, __global const
                 }
             }
         } else {
-            float tl, tr;
-            const bool hl = rk_slab(&s, nodes + index, tmax, &tl);
-            const bool hr = rk_slab(&s, nodes + index + 1, tmax, &tr);
-            if (hl && hr) {
-                uint nearc = index, farc = index + 1;
-                float tf = tr;
-                if (tr < tl) {
-                    nearc = index + 1;
-                    farc = index;
-                    tf = tl;
-                }
-                if (sp == RK_MAX_DEPTH) break;
-                st_node[sp] = farc;
-                st_t[sp] = tf;
-                ++sp;
-                cur = nearc;
-                continue;
-            }
-            if (hl) {
-                cur = index;
-                continue;
-            }
-            if (hr) {
-                cur = index + 1;
-                continue;
-            }
+            const int step = rk_descend(&s, nodes, index, tmax, &cur, st_node, st_t, &sp);
+            if (step < 0) break;
+            if (step > 0) continue;
         }
-        bool next = false;
-        while (sp > 0) {
-            --sp;
-            if (st_t[sp] <= tmax * RK_SLAB_EXIT_SCALE) {
-                cur = st_node[sp];
-                next = true;
-                break;
-            }
-        }
-        if (!next) break;
+        if (!rk_pop(&cur, st_node, st_t, &sp, tmax)) break;
     }
     if (steps) *steps = visited;
     return found;
