@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <random>
 #include <string>
 
@@ -39,6 +40,47 @@ struct Setting {
     BuildFn build;
 };
 
+/// The post-pass (bvh/optimize.hpp) on other inputs and with heavier
+/// settings than PLOC's default: after sort-by-axis (the thesis's greedy
+/// pairing gives the worst trees to start from), and every node a treelet
+/// root with many nodes reinserted.
+std::vector<Setting> optimized_settings() {
+    std::vector<Setting> s;
+    using SA = SortAxisBuilder::Config::Axis;
+    using SM = SortAxisBuilder::Config::Metric;
+    using SP = SortAxisBuilder::Config::Pairing;
+    s.push_back({"sortaxis/default/opt", [](std::span<const AABB> b, std::span<const vec3> c, unsigned threads,
+                                            unsigned leaf) {
+                     SortAxisBuilder::Config cfg;
+                     cfg.threads = threads;
+                     cfg.max_leaf_size = leaf;
+                     cfg.optimize = OptimizeConfig{};
+                     return SortAxisBuilder::build(b, c, cfg);
+                 }});
+    s.push_back({"sortaxis/x/centre/greedy/W6/opt", [](std::span<const AABB> b, std::span<const vec3> c,
+                                                        unsigned threads, unsigned leaf) {
+                     SortAxisBuilder::Config cfg;
+                     cfg.axis = SA::x;
+                     cfg.metric = SM::centre;
+                     cfg.pairing = SP::greedy;
+                     cfg.window = 6;
+                     cfg.threads = threads;
+                     cfg.max_leaf_size = leaf;
+                     cfg.optimize = OptimizeConfig{};
+                     return SortAxisBuilder::build(b, c, cfg);
+                 }});
+    s.push_back({"ploc/R8/opt-heavy", [](std::span<const AABB> b, std::span<const vec3> c, unsigned threads,
+                                         unsigned leaf) {
+                     PlocBuilder::Config cfg;
+                     cfg.radius = 8;
+                     cfg.threads = threads;
+                     cfg.max_leaf_size = leaf;
+                     cfg.optimize = {0.25f, 3u, 1u};
+                     return PlocBuilder::build(b, c, cfg);
+                 }});
+    return s;
+}
+
 std::vector<Setting> all_settings() {
     std::vector<Setting> s;
     using PM = PairwiseBuilder::Config::Metric;
@@ -53,32 +95,39 @@ std::vector<Setting> all_settings() {
                      }});
     using SA = SortAxisBuilder::Config::Axis;
     using SM = SortAxisBuilder::Config::Metric;
+    using SP = SortAxisBuilder::Config::Pairing;
     for (SA axis : {SA::x, SA::longest, SA::morton})
         for (SM metric : {SM::centre, SM::area})
-            for (unsigned w : {1u, 2u, 6u, 32u}) {
-                const std::string name = std::string("sortaxis/") +
-                                         (axis == SA::x ? "x" : axis == SA::longest ? "longest" : "morton") + "/" +
-                                         (metric == SM::centre ? "centre" : "area") + "/W" + std::to_string(w);
-                s.push_back({name, [axis, metric, w](std::span<const AABB> b, std::span<const vec3> c, unsigned threads,
-                                                     unsigned leaf) {
-                                 SortAxisBuilder::Config cfg;
-                                 cfg.axis = axis;
-                                 cfg.metric = metric;
-                                 cfg.window = w;
-                                 cfg.threads = threads;
-                                 cfg.max_leaf_size = leaf;
-                                 return SortAxisBuilder::build(b, c, cfg);
-                             }});
-            }
-    for (unsigned r : {1u, 8u, 32u})
-        s.push_back({"ploc/R" + std::to_string(r),
-                     [r](std::span<const AABB> b, std::span<const vec3> c, unsigned threads, unsigned leaf) {
-                         PlocBuilder::Config cfg;
-                         cfg.radius = r;
-                         cfg.threads = threads;
-                         cfg.max_leaf_size = leaf;
-                         return PlocBuilder::build(b, c, cfg);
-                     }});
+            for (SP pairing : {SP::greedy, SP::mutual})
+                for (unsigned w : {1u, 2u, 6u, 32u}) {
+                    const std::string name = std::string("sortaxis/") +
+                                             (axis == SA::x ? "x" : axis == SA::longest ? "longest" : "morton") + "/" +
+                                             (metric == SM::centre ? "centre" : "area") + "/" +
+                                             (pairing == SP::greedy ? "greedy" : "mutual") + "/W" + std::to_string(w);
+                    s.push_back({name, [axis, metric, pairing, w](std::span<const AABB> b, std::span<const vec3> c,
+                                                                  unsigned threads, unsigned leaf) {
+                                     SortAxisBuilder::Config cfg;
+                                     cfg.axis = axis;
+                                     cfg.metric = metric;
+                                     cfg.pairing = pairing;
+                                     cfg.window = w;
+                                     cfg.threads = threads;
+                                     cfg.max_leaf_size = leaf;
+                                     return SortAxisBuilder::build(b, c, cfg);
+                                 }});
+                }
+    for (unsigned r : {1u, 4u, 8u, 32u})
+        for (bool opt : {false, true})
+            s.push_back({"ploc/R" + std::to_string(r) + (opt ? "/opt" : "/plain"),
+                         [r, opt](std::span<const AABB> b, std::span<const vec3> c, unsigned threads, unsigned leaf) {
+                             PlocBuilder::Config cfg;
+                             cfg.radius = r;
+                             cfg.threads = threads;
+                             cfg.max_leaf_size = leaf;
+                             if (!opt) cfg.optimize = OptimizeConfig::off();
+                             return PlocBuilder::build(b, c, cfg);
+                         }});
+    for (const Setting& st : optimized_settings()) s.push_back(st);
     return s;
 }
 
@@ -240,6 +289,12 @@ TEST(Builders, SameTreeForOneTwoAndSevenThreads) {
     for (const Mesh* m : {&torus, &soup}) {
         const PrimitiveRefs r = primitive_refs(*m);
         for (const Setting& st : all_settings()) {
+            // sort-by-axis: windows 2 and 32 cover the code paths (1 and 6 run everywhere else)
+            auto ends_with = [&](const char* suffix) {
+                const std::size_t k = std::strlen(suffix);
+                return st.name.size() >= k && st.name.compare(st.name.size() - k, k, suffix) == 0;
+            };
+            if (st.name.rfind("sortaxis", 0) == 0 && (ends_with("/W1") || ends_with("/W6"))) continue;
             const Bvh a = st.build(r.boxes, r.centers, 1, 8);
             const Bvh b = st.build(r.boxes, r.centers, 2, 8);
             const Bvh c = st.build(r.boxes, r.centers, 7, 8);
@@ -371,7 +426,9 @@ TEST(Builders, GeometricProgressionStaysWithinTheDepthBound) {
     const TestScene s("geometric progression", geometric_progression(4000), scaled(800, 300), 2);
     std::vector<Setting> settings = default_settings();
     for (const Setting& st : all_settings())
-        if (st.name.rfind("ploc", 0) == 0 || st.name.find("/W32") != std::string::npos) settings.push_back(st);
+        if (st.name.rfind("ploc", 0) == 0 || st.name.find("/W32") != std::string::npos ||
+            st.name.find("/opt") != std::string::npos)
+            settings.push_back(st);
     for (const Setting& st : settings)
         for (unsigned leaf : {1u, 8u}) {
             const Bvh bvh = st.build(s.refs.boxes, s.refs.centers, 0, leaf);
@@ -450,5 +507,156 @@ TEST(Builders, SahCostRelativeToBinnedSah) {
         const double c = sah_cost(bvh);
         EXPECT_GT(c, 0.0) << st.name;
         std::printf("[ info ]   %-28s %8.3f  (%.3fx)\n", st.name.c_str(), c, c / ref);
+    }
+}
+
+/// The post-pass only ever lowers the SAH cost: the same build with and
+/// without it, on meshes of even and of very uneven triangles, degenerate
+/// ones, and from the best and the worst bottom-up trees.
+TEST(Builders, OptimizePassNeverRaisesTheSahCost) {
+    std::vector<std::pair<std::string, Mesh>> meshes;
+    meshes.reserve(8);
+    meshes.emplace_back("torus", make_bumpy_torus(scaled(30000, 8000)));
+    meshes.emplace_back("soup", make_random_soup(scaled(20000, 5000), 21, 0.05f));
+    meshes.emplace_back("mixed sizes", make_random_soup(scaled(8000, 3000), 22, 0.6f));
+    meshes.emplace_back("degenerate", degenerate_mesh(scaled(3000, 1000)));
+    meshes.emplace_back("geometric progression", geometric_progression(2000));
+    {
+        std::vector<std::array<vec3, 3>> same;
+        for (int i = 0; i < 500; ++i) same.push_back({vec3(0), vec3(1, 0, 0), vec3(0, 1, 0)});
+        meshes.emplace_back("identical", mesh_of_triangles(same));
+    }
+    using SA = SortAxisBuilder::Config::Axis;
+    using SP = SortAxisBuilder::Config::Pairing;
+    const OptimizeConfig configs[] = {OptimizeConfig{}, {0.02f, 0u, 16u}, {0.0f, 1u, 16u}, {0.25f, 3u, 1u}};
+    for (const auto& [name, m] : meshes) {
+        const PrimitiveRefs r = primitive_refs(m);
+        for (unsigned leaf : {1u, 4u, 8u})
+            for (const OptimizeConfig& oc : configs) {
+                PlocBuilder::Config p;
+                p.max_leaf_size = leaf;
+                p.optimize = OptimizeConfig::off();
+                const double before = sah_cost(PlocBuilder::build(r.boxes, r.centers, p));
+                p.optimize = oc;
+                const Bvh after = PlocBuilder::build(r.boxes, r.centers, p);
+                EXPECT_LE(sah_cost(after), before * (1.0 + 1e-6)) << "ploc, " << name << ", leaf " << leaf;
+                EXPECT_EQ(validate(after, r.boxes), "") << name;
+                for (SP pairing : {SP::greedy, SP::mutual}) {
+                    SortAxisBuilder::Config c;
+                    c.max_leaf_size = leaf;
+                    c.pairing = pairing;
+                    c.axis = pairing == SP::greedy ? SA::x : SA::morton;
+                    const double b0 = sah_cost(SortAxisBuilder::build(r.boxes, r.centers, c));
+                    c.optimize = oc;
+                    const Bvh a = SortAxisBuilder::build(r.boxes, r.centers, c);
+                    EXPECT_LE(sah_cost(a), b0 * (1.0 + 1e-6)) << "sortaxis, " << name << ", leaf " << leaf;
+                    EXPECT_EQ(validate(a, r.boxes), "") << name;
+                }
+            }
+    }
+    // and it does lower it where there is something to gain
+    const PrimitiveRefs r = primitive_refs(meshes[0].second);
+    PlocBuilder::Config p;
+    p.optimize = OptimizeConfig::off();
+    const double plain = sah_cost(PlocBuilder::build(r.boxes, r.centers, p));
+    p.optimize = OptimizeConfig{};
+    EXPECT_LT(sah_cost(PlocBuilder::build(r.boxes, r.centers, p)), plain * 0.98);
+}
+
+/// On up to seven primitives one treelet holds them all, so the dynamic
+/// program must find the best tree there is: compared with an exhaustive
+/// search over every binary tree and every leaf collapse (the same rule and
+/// constants), written independently here.
+TEST(Builders, TreeletFindsTheOptimalTreeOverSevenPrimitives) {
+    for (std::uint64_t seed = 1; seed <= 40; ++seed)
+        for (std::size_t n : {3u, 5u, 7u})
+            for (unsigned leaf : {1u, 2u, 4u, 8u}) {
+                const Mesh m = make_random_soup(n, seed * 31 + n, 0.1f + 0.1f * float(seed % 5));
+                const PrimitiveRefs r = primitive_refs(m);
+                // best[S]: least cost (Ct = Ci = 1, half areas) of a subtree over subset S
+                const std::size_t full = (std::size_t(1) << n) - 1;
+                std::vector<double> best(full + 1, 0.0);
+                std::vector<AABB> box(full + 1);
+                for (std::size_t S = 1; S <= full; ++S) {
+                    std::size_t cnt = 0;
+                    for (std::size_t i = 0; i < n; ++i)
+                        if (S >> i & 1) {
+                            box[S].grow(r.boxes[i]);
+                            ++cnt;
+                        }
+                    const double a = box[S].half_area();
+                    if (cnt == 1) {
+                        best[S] = a;
+                        continue;
+                    }
+                    double split = std::numeric_limits<double>::infinity();
+                    for (std::size_t P = (S - 1) & S; P > 0; P = (P - 1) & S) split = std::min(split, best[P] + best[S ^ P]);
+                    best[S] = a + split;
+                    if (cnt <= leaf) best[S] = std::min(best[S], a * double(cnt));
+                }
+                const double optimum = best[full] / box[full].half_area();
+                PlocBuilder::Config c;
+                c.max_leaf_size = leaf;
+                c.optimize = {0.0f, 1u, 1u};
+                const Bvh bvh = PlocBuilder::build(r.boxes, r.centers, c);
+                EXPECT_NEAR(sah_cost(bvh), optimum, 1e-5 * optimum) << n << " primitives, seed " << seed << ", leaf " << leaf;
+                EXPECT_EQ(validate(bvh, r.boxes), "");
+            }
+}
+
+/// The post-pass on a merge tree after a depth cut (nodes out of batch order,
+/// some unreachable), and on one that restructuring may deepen: the result is
+/// valid, within the depth bound and answers like brute force.
+TEST(Builders, OptimizePassAfterADepthCut) {
+    for (std::uint32_t n : {3u, 66u, 5000u}) {
+        const TestScene s("caterpillar", make_random_soup(n, n + 7, 0.05f), 200, n);
+        const PrimitiveRefs& r = s.refs;
+        for (bool left_deep : {false, true}) {
+            detail::MergeTree t;
+            t.prims = n;
+            std::uint32_t cur = 0;
+            for (std::uint32_t i = 1; i < n; ++i) {
+                cur = left_deep ? t.add(cur, i) : t.add(i, cur);
+                t.close_batch();
+            }
+            t.root = cur;
+            for (unsigned leaf : {1u, 8u})
+                for (const OptimizeConfig& oc : {OptimizeConfig{}, OptimizeConfig{0.25f, 3u, 1u}}) {
+                    detail::MergeTree copy = t;
+                    const LeafCollapseConfig lc{leaf, 1.0f, 1.0f};
+                    detail::optimize_merge_tree(copy, r.boxes, r.centers, lc, oc, 2);
+                    const Bvh bvh = detail::finish_bottom_up(copy, r.boxes, r.centers, lc, 2);
+                    detail::MergeTree plain = t;
+                    const double before = sah_cost(detail::finish_bottom_up(plain, r.boxes, r.centers, lc, 2));
+                    EXPECT_EQ(validate(bvh, r.boxes), "") << n << " left " << left_deep;
+                    EXPECT_LE(bvh.depth(), RAYKIT_BVH_MAX_DEPTH) << n;
+                    EXPECT_LE(sah_cost(bvh), before * (1.0 + 1e-6)) << n;
+                    expect_matches_brute_force(s, bvh, "optimized caterpillar " + std::to_string(n));
+                }
+        }
+    }
+}
+
+/// Mutual pairing with equal distances everywhere (identical triangles, a
+/// regular grid): ties pair neighbours two by two, so the tree stays
+/// balanced instead of growing one pair per level.
+TEST(Builders, MutualPairingSplitsTiesEvenly) {
+    std::vector<std::array<vec3, 3>> same, grid;
+    for (int i = 0; i < 4096; ++i) same.push_back({vec3(0), vec3(1, 0, 0), vec3(0, 1, 0)});
+    for (int i = 0; i < 64; ++i)
+        for (int j = 0; j < 64; ++j) {
+            const vec3 p{float(i), float(j), 0.0f};
+            grid.push_back({p, p + vec3(0.5f, 0, 0), p + vec3(0, 0.5f, 0)});
+        }
+    for (const auto* tris : {&same, &grid}) {
+        const PrimitiveRefs r = primitive_refs(mesh_of_triangles(*tris));
+        for (auto metric : {SortAxisBuilder::Config::Metric::centre, SortAxisBuilder::Config::Metric::area}) {
+            SortAxisBuilder::Config c;
+            c.metric = metric;
+            c.max_leaf_size = 1;
+            const Bvh bvh = SortAxisBuilder::build(r.boxes, r.centers, c);
+            EXPECT_EQ(validate(bvh, r.boxes), "");
+            EXPECT_LE(bvh.depth(), 16) << (tris == &same ? "identical" : "grid");  // 4096 = 2^12
+        }
     }
 }

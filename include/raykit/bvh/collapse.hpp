@@ -29,18 +29,23 @@
 //
 // Also here (raykit::detail): centroid sanitizing, "working" boxes (finite,
 // non-empty stand-ins for empty or non-finite primitive boxes, used for
-// decisions only; the output boxes are always the real ones), Morton codes
-// and stable parallel LSD radix sorts.
+// decisions only; the output boxes are always the real ones), Morton codes,
+// stable parallel LSD radix sorts, and WorkTeam, the threads a bottom-up
+// build keeps for its many short passes. The optional post-pass that may run
+// between the builder and this back end is in bvh/optimize.hpp.
 #pragma once
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <cstdint>
 #include <cstring>
+#include <exception>
 #include <limits>
 #include <new>
 #include <span>
+#include <thread>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -124,12 +129,125 @@ public:
 
 private:
     void release() noexcept {
-        if (p_) ::operator delete(static_cast<void*>(p_), cap_ * sizeof(T), std::align_val_t(alignof(T)));
+        if (p_) ::operator delete(static_cast<void*>(p_), std::align_val_t(alignof(T)));
         p_ = nullptr;
         cap_ = 0;
     }
     T* p_ = nullptr;
     std::size_t n_ = 0, cap_ = 0;
+};
+
+/// A fixed set of threads kept for one build, for builders with many short
+/// parallel passes: starting and joining a std::thread costs ~50 µs, waking
+/// a waiting member a few µs. Work is split exactly as parallel_chunks
+/// splits it (chunk c of [0, n) on member c % size()), so results never
+/// depend on the member count. Members spin briefly, then sleep on an
+/// atomic wait. Not reentrant: one pass at a time, from the owning thread.
+class WorkTeam {
+public:
+    explicit WorkTeam(unsigned threads) : size_(std::max(1u, threads)), errors_(size_) {
+        helpers_.reserve(size_ - 1);
+        for (unsigned t = 1; t < size_; ++t) helpers_.emplace_back([this, t] { member_loop(t); });
+    }
+    WorkTeam(const WorkTeam&) = delete;
+    WorkTeam& operator=(const WorkTeam&) = delete;
+    ~WorkTeam() {
+        if (helpers_.empty()) return;
+        stop_ = true;
+        gen_.fetch_add(1, std::memory_order_release);
+        gen_.notify_all();
+        for (std::thread& th : helpers_) th.join();
+    }
+    unsigned size() const noexcept { return size_; }
+
+    /// fn(member) on every member at once (member 0 is the calling thread).
+    template <class Fn>
+    void each(Fn&& fn) {
+        if (size_ == 1) {
+            fn(0u);
+            return;
+        }
+        using F = std::remove_reference_t<Fn>;
+        ctx_ = const_cast<void*>(static_cast<const void*>(&fn));
+        call_ = [](void* c, unsigned member) { (*static_cast<F*>(c))(member); };
+        done_.store(0, std::memory_order_relaxed);
+        gen_.fetch_add(1, std::memory_order_release);
+        gen_.notify_all();
+        try {
+            fn(0u);
+        } catch (...) {
+            errors_[0] = std::current_exception();
+        }
+        const unsigned helpers = size_ - 1;
+        for (int spin = 0;; ++spin) {
+            const unsigned d = done_.load(std::memory_order_acquire);
+            if (d == helpers) break;
+            if (spin < kSpin) pause();
+            else done_.wait(d, std::memory_order_acquire);
+        }
+        for (std::exception_ptr& e : errors_)
+            if (e) {
+                std::exception_ptr x = e;
+                for (std::exception_ptr& f : errors_) f = nullptr;
+                std::rethrow_exception(x);
+            }
+    }
+
+    /// fn(c, lo, hi) for `chunks` contiguous chunks of [0, n) with the
+    /// boundaries of parallel_chunks; one chunk (or one member) runs inline.
+    template <class Fn>
+    void chunks(std::size_t n, std::size_t chunks, Fn&& fn) {
+        chunks = std::max<std::size_t>(1, std::min(chunks, n == 0 ? 1 : n));
+        auto bounds = [&](std::size_t c) { return n * c / chunks; };
+        if (chunks == 1 || size_ == 1) {
+            for (std::size_t c = 0; c < chunks; ++c) fn(c, bounds(c), bounds(c + 1));
+            return;
+        }
+        const std::size_t members = std::min<std::size_t>(size_, chunks);
+        each([&](unsigned t) {
+            for (std::size_t c = t; c < chunks && t < members; c += members) fn(c, bounds(c), bounds(c + 1));
+        });
+    }
+
+private:
+    static constexpr int kSpin = 4000;
+    static void pause() noexcept {
+#if defined(__x86_64__) || defined(__i386__)
+        __builtin_ia32_pause();
+#else
+        std::this_thread::yield();
+#endif
+    }
+    void member_loop(unsigned t) {
+        std::uint32_t seen = 0;
+        for (;;) {
+            for (int spin = 0;; ++spin) {
+                const std::uint32_t g = gen_.load(std::memory_order_acquire);
+                if (g != seen) {
+                    seen = g;
+                    break;
+                }
+                if (spin < kSpin) pause();
+                else gen_.wait(g, std::memory_order_acquire);
+            }
+            if (stop_) return;
+            try {
+                call_(ctx_, t);
+            } catch (...) {
+                errors_[t] = std::current_exception();
+            }
+            if (done_.fetch_add(1, std::memory_order_acq_rel) + 1 == size_ - 1) done_.notify_one();
+        }
+    }
+
+    unsigned size_;
+    std::vector<std::thread> helpers_;
+    std::vector<std::exception_ptr> errors_;
+    std::atomic<std::uint32_t> gen_{0};
+    std::atomic<unsigned> done_{0};
+    void (*call_)(void*, unsigned) = nullptr;
+    void* ctx_ = nullptr;
+    bool stop_ = false;  // written before a generation bump, read after it
 };
 
 /// Element count from which per-element passes run on several threads.
@@ -327,18 +445,26 @@ void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, un
 /// Stable LSD radix sort of 64-bit words by their bits [lo_bit, hi_bit)
 /// (typically a 32-bit key above a 32-bit payload), 11 bits per pass;
 /// passes where every word has the same digit are skipped. `scratch` may be
-/// reused between calls.
-inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, unsigned threads,
-                             RawArray<std::uint64_t>& scratch) {
+/// reused between calls. `run(n, chunks, fn)` runs the chunked passes
+/// (parallel_chunks or a WorkTeam).
+template <class Run>
+void radix_sort_words_with(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, std::size_t chunks, Run&& run,
+                           RawArray<std::uint64_t>& scratch) {
     constexpr int kDigit = 11;
     constexpr std::size_t kBins = std::size_t(1) << kDigit;
     const std::size_t m = a.size();
     if (m < 2) return;
+    if (m <= 512) {
+        // Small: a comparison sort of the bits gives the same order.
+        const std::uint64_t mask = (hi_bit >= 64 ? ~std::uint64_t(0) : (std::uint64_t(1) << hi_bit) - 1) &
+                                   ~((std::uint64_t(1) << lo_bit) - 1);
+        std::stable_sort(a.begin(), a.end(), [mask](std::uint64_t x, std::uint64_t y) { return (x & mask) < (y & mask); });
+        return;
+    }
     scratch.resize(m);
-    const std::size_t chunks = sort_chunks(m, threads);
     std::vector<std::uint32_t> hist(chunks * kBins);
     for (int shift = lo_bit; shift < hi_bit; shift += kDigit) {
-        parallel_chunks(m, chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+        run(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
             std::uint32_t* h = hist.data() + c * kBins;
             std::fill(h, h + kBins, 0u);
             for (std::size_t i = lo; i < hi; ++i) ++h[(a[i] >> shift) & (kBins - 1)];
@@ -354,7 +480,7 @@ inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit,
                 hist[c * kBins + b] = sum;
                 sum += h;
             }
-        parallel_chunks(m, chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+        run(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
             std::uint32_t* h = hist.data() + c * kBins;
             const std::uint64_t* RAYKIT_RESTRICT src = a.data();
             std::uint64_t* RAYKIT_RESTRICT dst = scratch.data();
@@ -362,6 +488,20 @@ inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit,
         });
         a.swap(scratch);
     }
+}
+
+inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, unsigned threads,
+                             RawArray<std::uint64_t>& scratch) {
+    radix_sort_words_with(
+        a, lo_bit, hi_bit, sort_chunks(a.size(), threads),
+        [threads](std::size_t n, std::size_t chunks, auto&& fn) { parallel_chunks(n, chunks, threads, fn); }, scratch);
+}
+
+inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, WorkTeam& team,
+                             RawArray<std::uint64_t>& scratch) {
+    radix_sort_words_with(
+        a, lo_bit, hi_bit, sort_chunks(a.size(), team.size()),
+        [&team](std::size_t n, std::size_t chunks, auto&& fn) { team.chunks(n, chunks, fn); }, scratch);
 }
 
 /// What a parent needs from a finished subtree for the leaf collapse.
@@ -526,7 +666,7 @@ inline bool limit_depth(MergeTree& t, std::span<const vec3> centers) {
 /// Calls node(k) for every inner node, batch after batch (children before
 /// parents); large batches are split among threads.
 template <class Fn>
-void sweep_batches(const MergeTree& t, unsigned threads, Fn& node) {
+void sweep_batches(const MergeTree& t, unsigned threads, Fn& node, WorkTeam* team = nullptr) {
     const std::size_t K = t.size();
     std::size_t begin = 0;
     for (const std::uint32_t end_u : t.batch_end) {
@@ -534,9 +674,11 @@ void sweep_batches(const MergeTree& t, unsigned threads, Fn& node) {
         if (end <= begin) continue;
         const std::size_t m = end - begin;
         if (threads > 1 && m >= kBottomUpParallelPass) {
-            parallel_chunks(m, pass_chunks(m), threads, [&](std::size_t, std::size_t lo, std::size_t hi) {
+            auto part = [&](std::size_t, std::size_t lo, std::size_t hi) {
                 for (std::size_t k = begin + lo; k < begin + hi; ++k) node(k);
-            });
+            };
+            if (team) team->chunks(m, pass_chunks(m), part);
+            else parallel_chunks(m, pass_chunks(m), threads, part);
         } else {
             for (std::size_t k = begin; k < end; ++k) node(k);
         }
@@ -548,7 +690,7 @@ void sweep_batches(const MergeTree& t, unsigned threads, Fn& node) {
 /// Turns a merge tree into the final Bvh (steps 2 and 3 above; step 1 first
 /// when the batch count does not already bound the height).
 inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span<const vec3> centers,
-                            const LeafCollapseConfig& cfg, unsigned threads) {
+                            const LeafCollapseConfig& cfg, unsigned threads, WorkTeam* team = nullptr) {
     Bvh bvh;
     const std::uint32_t n = t.prims;
     if (n == 0) return bvh;
@@ -607,7 +749,7 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
         };
         sweep(sweep, t.root, 0);
     } else if (!t.info_ready) {
-        sweep_batches(t, threads, node);
+        sweep_batches(t, threads, node, team);
     }
 
     // top-down output, pre-order with children side by side
@@ -662,9 +804,11 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
             const std::size_t end = t.batch_end[bi], begin = bi == 0 ? 0 : t.batch_end[bi - 1];
             const std::size_t m = end - begin;
             if (threads > 1 && m >= kBottomUpParallelPass) {
-                parallel_chunks(m, pass_chunks(m), threads, [&](std::size_t, std::size_t lo, std::size_t hi) {
+                auto part = [&](std::size_t, std::size_t lo, std::size_t hi) {
                     for (std::size_t k = begin + lo; k < begin + hi; ++k) down(k);
-                });
+                };
+                if (team) team->chunks(m, pass_chunks(m), part);
+                else parallel_chunks(m, pass_chunks(m), threads, part);
             } else {
                 for (std::size_t k = begin; k < end; ++k) down(k);
             }

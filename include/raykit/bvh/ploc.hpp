@@ -39,6 +39,7 @@
 
 #include "raykit/bvh/collapse.hpp"
 #include "raykit/bvh/node.hpp"
+#include "raykit/bvh/optimize.hpp"
 #include "raykit/util/parallel.hpp"
 
 namespace raykit {
@@ -46,15 +47,18 @@ namespace raykit {
 struct PlocBuilder {
     struct Config {
         /// R: neighbours searched on each side (1..1024). Measured SAH cost
-        /// relative to binned SAH (bumpy torus 100k / 1M, Stanford bunny):
-        /// R 4: 1.08 / 1.10 / 1.10, R 8: 1.09 / 1.10 / 1.09,
-        /// R 16: 1.10 / 1.12 / 1.10, R 32: 1.13 / 1.13 / 1.10; time grows
-        /// with R, so 8.
-        unsigned radius = 8;
+        /// relative to binned SAH without the post-pass (bumpy torus 100k /
+        /// 1M, Stanford bunny, thesis scene): R 4: 1.08 / 1.10 / 1.10 / 0.75,
+        /// R 8: 1.09 / 1.10 / 1.09 / 0.74, R 16: 1.10 / 1.12 / 1.10 / 0.79,
+        /// R 32: 1.13 / 1.13 / 1.10 / 0.78 (a wider search makes the greedy
+        /// clustering worse here); with the post-pass R 4 stays ahead, and
+        /// time grows with R, so 4.
+        unsigned radius = 4;
         unsigned max_leaf_size = 8;      ///< leaf collapse: larger subtrees stay split (0 acts as 1)
         float traversal_cost = 1.0f;     ///< Ct for the leaf collapse
         float intersection_cost = 1.0f;  ///< Ci for the leaf collapse
         unsigned threads = 0;            ///< 0 = all hardware threads
+        OptimizeConfig optimize{};       ///< post-pass (bvh/optimize.hpp); OptimizeConfig::off() for plain PLOC
     };
 
     static Bvh build(std::span<const AABB> boxes, std::span<const vec3> centers) {
@@ -72,12 +76,20 @@ struct PlocBuilder {
         tree.prims = n;
         tree.info.reserve(n > 0 ? n - 1 : 0);
 
+        // Helper threads for the whole build: an iteration is a few short passes.
+        detail::WorkTeam team(n >= detail::kBottomUpParallelPass ? threads : 1u);
+        auto par_for = [&](std::size_t m, auto&& fn) {
+            team.chunks(m, m < detail::kBottomUpParallelPass ? 1 : team.size(),
+                        [&](std::size_t, std::size_t lo, std::size_t hi) {
+                            for (std::size_t i = lo; i < hi; ++i) fn(i);
+                        });
+        };
         // Morton order
         detail::RawArray<std::uint32_t> order(n);
         {
             const detail::MortonQuantizer mq(sc.bounds);
             detail::RawArray<std::uint64_t> keys(n);
-            detail::par_for(n, threads, [&](std::size_t i) {
+            par_for(n, [&](std::size_t i) {
                 keys[i] = mq(sc[i]);
                 order[i] = static_cast<std::uint32_t>(i);
             });
@@ -85,7 +97,7 @@ struct PlocBuilder {
         }
         Clusters cur, next;
         cur.resize(n);
-        detail::par_for(n, threads, [&](std::size_t s) {
+        par_for(n, [&](std::size_t s) {
             const std::uint32_t p = order[s];
             cur.set(s, detail::working_box(boxes[p], sc[p]), p);
         });
@@ -99,7 +111,7 @@ struct PlocBuilder {
             const std::size_t chunks = detail::pass_chunks(m);
             nn.resize(m);
             // 1. nearest neighbours
-            parallel_chunks(m, chunks, threads, [&](std::size_t, std::size_t lo, std::size_t hi) {
+            team.chunks(m, chunks, [&](std::size_t, std::size_t lo, std::size_t hi) {
                 std::vector<float> d(2 * R + 1);
                 for (std::size_t i = lo; i < hi; ++i) {
                     const std::size_t b = i >= R ? i - R : 0, e = std::min(m, i + R + 1);
@@ -111,7 +123,7 @@ struct PlocBuilder {
             // 2. count merges and survivors per chunk
             merges.assign(chunks + 1, 0);
             keeps.assign(chunks + 1, 0);
-            parallel_chunks(m, chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+            team.chunks(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
                 std::uint32_t mg = 0, kp = 0;
                 for (std::size_t i = lo; i < hi; ++i) {
                     const std::uint32_t j = nn[i];
@@ -132,7 +144,7 @@ struct PlocBuilder {
             tree.info.resize(base + merges[chunks]);
             next.resize(keeps[chunks]);
             remap.resize(m);
-            parallel_chunks(m, chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+            team.chunks(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
                 std::uint32_t mg = merges[c], kp = keeps[c];
                 for (std::size_t i = lo; i < hi; ++i) {
                     const std::uint32_t j = nn[i];
@@ -176,7 +188,8 @@ struct PlocBuilder {
         }
         tree.root = n > 0 ? cur.node[0] : 0;  // merges keep the lower position: 0 survives
         const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost};
-        return detail::finish_bottom_up(tree, boxes, sc.view, lc, threads);
+        detail::optimize_merge_tree(tree, boxes, sc.view, lc, cfg.optimize, team.size(), &team);
+        return detail::finish_bottom_up(tree, boxes, sc.view, lc, team.size(), &team);
     }
 
 private:

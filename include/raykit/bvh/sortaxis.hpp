@@ -1,9 +1,12 @@
 // raykit/bvh/sortaxis.hpp — bottom-up "sort by axis" fast builder (the
 // thesis's second method).
 //
-//   Bvh bvh = SortAxisBuilder::build(prim_boxes, prim_centers);             // Morton, W = 6
-//   Bvh bvh = SortAxisBuilder::build(prim_boxes, prim_centers,
-//                                    {.window = 6, .axis = SortAxisBuilder::Config::Axis::x});  // thesis
+//   Bvh bvh = SortAxisBuilder::build(prim_boxes, prim_centers);    // Morton, mutual, area, W = 2
+//   SortAxisBuilder::Config thesis;                                 // the thesis's configuration:
+//   thesis.axis = SortAxisBuilder::Config::Axis::x;
+//   thesis.pairing = SortAxisBuilder::Config::Pairing::greedy;
+//   thesis.metric = SortAxisBuilder::Config::Metric::centre;
+//   thesis.window = 6;
 //
 // Level by level until one element is left (level 0 = the primitives):
 //   1. sort the level's elements by their centre along Config::axis:
@@ -13,35 +16,58 @@
 //        Axis::morton  the 30-bit Morton code of the centres (a 3-D
 //                      generalisation of "along an axis"; the grid is
 //                      fitted to the primitives' centroids);
-//      (stable parallel radix sort: ties keep the previous level's order);
-//   2. cut the sorted list into chunks of 8192 to 16383 elements (the
+//      (a stable sort: ties keep the previous level's order);
+//   2. cut the sorted list into chunks of 2048 to 4095 elements (the
 //      boundaries depend only on the element count, so the tree does not
-//      depend on the thread count) and, on separate threads, walk each chunk
-//      in order: the first unpaired element pairs with the nearest of the
-//      next `window` unpaired elements (ties: the earlier one) and both are
-//      removed. A chunk's last unpaired element, if any, is carried to the
-//      next level unchanged. Distances: Metric::centre, the distance between
-//      centres (a node's centre is the centre of its box; thesis), or
-//      Metric::area, the surface area of the merged box.
-//   The next level is the new nodes, chunk by chunk in the order they were
-//   created, each chunk's carried element after its new nodes.
-// Every level halves the element count (up to one per chunk), so the height
-// stays within about log2(n) + 1 and RAYKIT_BVH_MAX_DEPTH is never at risk.
+//      depend on the thread count) and pair each chunk, the chunks on
+//      separate threads, by one of two rules:
+//        Pairing::greedy (thesis): walk the chunk in order; the first
+//          unpaired element pairs with the nearest of the next `window`
+//          unpaired elements (ties: the earlier one) and both are removed.
+//          Every element is paired on every level (a chunk's last one, if
+//          any, is carried to the next level unchanged).
+//        Pairing::mutual: every element finds its nearest among the
+//          `window` elements on each side of it in the chunk; two elements
+//          that are each other's nearest pair, every other element waits,
+//          unchanged, for the next level (ties are broken by a rank of the
+//          pair, so a chunk always has a mutual pair and equal distances pair
+//          neighbours two by two). A level of more than 256 elements where
+//          fewer than 1/16 are paired (chains: each element nearest to the
+//          next) pairs greedily instead, so the level count stays O(log n);
+//          none of the measured scenes ever needs it.
+//      Distances: Metric::centre, between centres (a node's centre is the
+//      centre of its box; thesis), or Metric::area, the surface area of the
+//      merged box (the agglomerative-clustering metric).
+//   The next level keeps the chunks' order: new nodes and carried elements,
+//   a new node where its first child was; the sort of step 1 then only has to
+//   place the new nodes (carried elements keep their keys and order).
 // The merge tree then goes through the shared back end (bvh/collapse.hpp):
-// SAH leaf collapse (max_leaf_size, traversal_cost, intersection_cost) and
-// pre-order output. Degenerate or NaN primitives are handled as in the other
-// builders: non-finite centroids move to the centre of the finite ones.
+// the optional post-pass of bvh/optimize.hpp (off by default here), the depth
+// bound (a long run of mutual levels could pass RAYKIT_BVH_MAX_DEPTH; any
+// such subtree is rebuilt with median splits), SAH leaf collapse
+// (max_leaf_size, traversal_cost, intersection_cost) and the pre-order
+// output. Degenerate or NaN primitives are handled as in the other builders:
+// non-finite centroids move to the centre of the finite ones.
 //
-// Quality. Forcing every element into a pair on every level, with partners
-// chosen from a short window, gives trees well behind top-down SAH. SAH cost
-// relative to BinnedSahBuilder measured on a 1M-triangle bumpy torus /
-// the Stanford bunny: Morton W 6: 3.96 / 3.53, W 32: 3.27 / 2.74; x axis
-// (thesis) W 6: 206 / 29, W 32: 20 / 5.1. Even the exact nearest partner
-// (PairwiseBuilder) gives 1.38 / 2.0. Hence the Morton default; Axis::x
-// with W = 6 and Metric::centre is the thesis's configuration.
+// Quality. SAH cost relative to BinnedSahBuilder (same leaf size and cost
+// constants), Stanford bunny / thesis scene / bumpy torus 100k / 1M:
+//   greedy, x, centre (thesis), W 6:   28.8 / 3.45 / 27.7 / 206
+//   greedy, Morton, centre, W 6:        3.53 / 3.83 / 3.16 / 3.96
+//   greedy, Morton, centre, W 64:       2.49 / 3.05 / 2.30 / 2.92
+//   mutual, Morton, centre, W 2:        1.14 / 1.07 / 1.12 / 1.13
+//   mutual, Morton, area, W 2:          1.10 / 0.79 / 1.09 / 1.09  (default)
+//   mutual, Morton, area, W 4:          1.11 / 0.75 / 1.08 / 1.09
+// Forcing every element into a pair on every level is what costs the
+// thesis's rule its quality: a dense, even mesh then gets a balanced tree
+// whose upper boxes overlap. Letting elements without a mutual partner wait
+// keeps the sort, the window and the chunked parallel pairing, and builds
+// about as fast (the waiting elements add levels, but the sort of a level
+// only places the new nodes). W = 2 on each side is the best measured
+// trade: W = 1 loses 4-6 %, W >= 8 gains nothing and costs time.
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cstdint>
 #include <span>
 #include <stdexcept>
@@ -49,6 +75,7 @@
 
 #include "raykit/bvh/collapse.hpp"
 #include "raykit/bvh/node.hpp"
+#include "raykit/bvh/optimize.hpp"
 #include "raykit/util/parallel.hpp"
 
 namespace raykit {
@@ -64,13 +91,19 @@ struct SortAxisBuilder {
             centre,  ///< distance between centres (thesis)
             area,    ///< surface area of the merged box
         };
-        unsigned window = 6;             ///< W: candidates looked at per element (≥ 1; thesis: 6)
-        Axis axis = Axis::morton;        ///< (thesis: x; see Quality above)
-        Metric metric = Metric::centre;
-        unsigned max_leaf_size = 8;      ///< leaf collapse: larger subtrees stay split (0 acts as 1)
-        float traversal_cost = 1.0f;     ///< Ct for the leaf collapse
-        float intersection_cost = 1.0f;  ///< Ci for the leaf collapse
-        unsigned threads = 0;            ///< 0 = all hardware threads
+        enum class Pairing {
+            greedy,  ///< every element pairs with the nearest of the next W unpaired ones (thesis)
+            mutual,  ///< only mutual nearest neighbours within W on each side pair; the rest wait a level
+        };
+        unsigned window = 2;                ///< W: candidates looked at per element, per side for mutual (1..4096; thesis: 6)
+        Axis axis = Axis::morton;           ///< (thesis: x; see Quality above)
+        Metric metric = Metric::area;       ///< (thesis: centre)
+        Pairing pairing = Pairing::mutual;  ///< (thesis: greedy; see Quality above)
+        unsigned max_leaf_size = 8;         ///< leaf collapse: larger subtrees stay split (0 acts as 1)
+        float traversal_cost = 1.0f;        ///< Ct for the leaf collapse
+        float intersection_cost = 1.0f;     ///< Ci for the leaf collapse
+        unsigned threads = 0;               ///< 0 = all hardware threads
+        OptimizeConfig optimize = OptimizeConfig::off();  ///< post-pass (bvh/optimize.hpp)
     };
 
     static Bvh build(std::span<const AABB> boxes, std::span<const vec3> centers) {
@@ -84,6 +117,7 @@ struct SortAxisBuilder {
             throw std::invalid_argument("SortAxisBuilder: window must be in [1, 4096]");
         const unsigned threads = resolve_threads(cfg.threads);
         const bool area = cfg.metric == Config::Metric::area;
+        const bool mutual = cfg.pairing == Config::Pairing::mutual;
         const auto n = static_cast<std::uint32_t>(boxes.size());
         const detail::SanitizedCenters sc = detail::sanitize_centers(centers, threads);
         detail::MergeTree tree;
@@ -99,83 +133,147 @@ struct SortAxisBuilder {
         // they hold when every primitive box is real (finite, non-empty),
         // else finish_bottom_up recomputes them from the real boxes.
         std::vector<std::uint8_t> substituted(std::max(1u, threads), 0);
-        Level cur, next;                              // this level's elements, the next level's
-        detail::RawArray<std::uint64_t> keys(n), scratch;  // (key << 32 | element); scratch: the next level's
-        detail::par_for(n, threads, [&](std::size_t i) { keys[i] = key(sc[i], static_cast<std::uint32_t>(i)); });
+        Level cur, next, srt;  // this level's elements (by index), the next level's, this level's in sorted order
+        // Sort words (key << 32 | element index), this level's in sorted
+        // order; the next level's carried and new elements apart.
+        detail::RawArray<std::uint64_t> keys(n), keys_carried, keys_new, scratch;
+        detail::RawArray<std::uint32_t> nn;  // mutual pairing: nearest neighbour (sorted positions)
+        // Helper threads for the whole build: a level is a few short passes.
+        detail::WorkTeam team(n >= 2 * kChunk ? threads : 1u);
+        team.chunks(n, detail::pass_chunks(n), [&](std::size_t, std::size_t lo, std::size_t hi) {
+            for (std::size_t i = lo; i < hi; ++i) keys[i] = key(sc[i], static_cast<std::uint32_t>(i));
+        });
+        detail::radix_sort_words(keys, 32, 64, team, scratch);
         std::vector<std::uint32_t> chunk_out, chunk_pairs;
         std::size_t m = n;
         bool first = true;  // level 0 reads the primitives directly
+        // gathers the sorted elements [lo, hi) of this level into srt
+        auto gather = [&](std::size_t w, std::size_t lo, std::size_t hi) {
+            if (first) {  // the primitives, in key order: a random gather, so prefetch ahead
+                constexpr std::size_t kAhead = 16;
+                bool bad = false;
+                for (std::size_t s = lo; s < hi; ++s) {
+                    if (s + kAhead < hi) {
+                        const auto f = static_cast<std::uint32_t>(keys[s + kAhead]);
+                        __builtin_prefetch(&boxes[f]);
+                        __builtin_prefetch(&sc[f]);
+                    }
+                    const auto e = static_cast<std::uint32_t>(keys[s]);
+                    const AABB& b = boxes[e];
+                    const bool real = !b.is_empty() && detail::box_is_finite(b);
+                    bad |= !real;
+                    srt.e[s] = {real ? b : AABB::of_point(sc[e]), e, detail::primitive_cost(b, lc)};
+                    if (!area) srt.centre[s] = sc[e];
+                }
+                substituted[w] |= bad;
+                return;
+            }
+            for (std::size_t s = lo; s < hi; ++s) {
+                const auto e = static_cast<std::uint32_t>(keys[s]);
+                srt.e[s] = cur.e[e];
+                if (!area) srt.centre[s] = cur.centre[e];
+            }
+        };
         while (m > 1) {
-            // 1. sort (stable: equal keys keep the previous level's order)
-            detail::radix_sort_words(keys, 32, 64, threads, scratch);
-            // 2. chunks and their output slots
+            // chunks: boundaries depend on m only
             const std::size_t chunks = std::max<std::size_t>(1, m / kChunk);
+            auto lo_of = [&](std::size_t c) { return m * c / chunks; };
+            const unsigned workers = static_cast<unsigned>(std::min<std::size_t>(threads, chunks));
+            srt.resize(m, !area);
             chunk_out.assign(chunks + 1, 0);
             chunk_pairs.assign(chunks + 1, 0);
+            // 1. gather in sorted order; mutual: nearest neighbours within
+            //    ±W in the chunk and the chunk's count of mutual pairs
+            if (mutual) nn.resize(m);
+            team.chunks(chunks, workers, [&](std::size_t w, std::size_t c0, std::size_t c1) {
+                std::vector<float> fwd;
+                for (std::size_t c = c0; c < c1; ++c) {
+                    const std::size_t lo = lo_of(c), hi = lo_of(c + 1);
+                    gather(w, lo, hi);
+                    if (!mutual) continue;
+                    nearest(srt, lo, hi, cfg.window, area, nn, fwd);
+                    std::uint32_t pairs = 0;
+                    for (std::size_t i = lo; i < hi; ++i) pairs += nn[i] > i && nn[nn[i]] == i;
+                    chunk_pairs[c + 1] = pairs;
+                    chunk_out[c + 1] = static_cast<std::uint32_t>(hi - lo) - pairs;
+                }
+            });
+            bool greedy = !mutual;
+            if (mutual && m > kGreedyFallbackMin) {
+                // Too few mutual pairs (ties, chains): this level pairs
+                // every element as the thesis does, so a large input
+                // never needs more than O(log n) levels.
+                std::size_t pairs = 0;
+                for (std::size_t c = 0; c < chunks; ++c) pairs += chunk_pairs[c + 1];
+                greedy = pairs * kMinMutualShare < m;
+            }
+            if (greedy) {
+                for (std::size_t c = 0; c < chunks; ++c) {
+                    const std::size_t len = lo_of(c + 1) - lo_of(c);
+                    chunk_out[c + 1] = static_cast<std::uint32_t>((len + 1) / 2);
+                    chunk_pairs[c + 1] = static_cast<std::uint32_t>(len / 2);
+                }
+            }
             for (std::size_t c = 0; c < chunks; ++c) {
-                const std::size_t len = m * (c + 1) / chunks - m * c / chunks;
-                chunk_out[c + 1] = chunk_out[c] + static_cast<std::uint32_t>((len + 1) / 2);
-                chunk_pairs[c + 1] = chunk_pairs[c] + static_cast<std::uint32_t>(len / 2);
+                chunk_out[c + 1] += chunk_out[c];
+                chunk_pairs[c + 1] += chunk_pairs[c];
             }
             const auto base = static_cast<std::uint32_t>(tree.size());
-            const std::size_t m2 = chunk_out[chunks];
-            tree.info.resize(base + chunk_pairs[chunks]);
-            next.resize(m2);
-            scratch.resize(m2);  // free after the sort: takes the next level's keys
-            // 3. pair the chunks; each worker gathers a chunk into its own
-            //    buffer (sorted order), then pairs it
-            const unsigned workers = static_cast<unsigned>(std::min<std::size_t>(threads, chunks));
-            parallel_chunks(chunks, workers, workers, [&](std::size_t w, std::size_t c0, std::size_t c1) {
-                Level S;
+            const std::size_t m2 = chunk_out[chunks], new_nodes = chunk_pairs[chunks];
+            tree.info.resize(base + new_nodes);
+            next.resize(m2, !area);
+            keys_carried.resize(m2 - new_nodes);
+            keys_new.resize(new_nodes);
+            // 2. pair the chunks on separate threads
+            team.chunks(chunks, workers, [&](std::size_t, std::size_t c0, std::size_t c1) {
                 for (std::size_t c = c0; c < c1; ++c) {
-                    const std::size_t lo = m * c / chunks, hi = m * (c + 1) / chunks;
-                    S.resize(hi - lo);
-                    for (std::size_t s = lo; s < hi; ++s) {
-                        const auto e = static_cast<std::uint32_t>(keys[s]);
-                        if (first) {
-                            const AABB& b = boxes[e];
-                            const bool real = !b.is_empty() && detail::box_is_finite(b);
-                            substituted[w] |= !real;
-                            S.centre[s - lo] = sc[e];
-                            S.box[s - lo] = real ? b : AABB::of_point(sc[e]);
-                            S.node[s - lo] = e;
-                            S.sub[s - lo] = detail::primitive_cost(b, lc);
-                        } else {
-                            S.centre[s - lo] = cur.centre[e];
-                            S.box[s - lo] = cur.box[e];
-                            S.node[s - lo] = cur.node[e];
-                            S.sub[s - lo] = cur.sub[e];
-                        }
-                    }
-                    pair_chunk(S, cfg.window, area, n, base + chunk_pairs[c], chunk_out[c], tree, next, scratch, key,
-                               lc);
+                    const Out out{n,     base + chunk_pairs[c], chunk_pairs[c], chunk_out[c], chunk_out[c] - chunk_pairs[c],
+                                  !area, &tree, &next, &keys, &keys_carried, &keys_new, &key, &lc};
+                    if (greedy) pair_greedy(srt, lo_of(c), lo_of(c + 1), cfg.window, area, out);
+                    else pair_mutual(srt, lo_of(c), lo_of(c + 1), nn, out);
                 }
             });
             tree.close_batch();
+            // 3. the next level's sort: carried elements keep their keys and
+            //    their order, so only the new nodes are sorted (stable, by
+            //    key; they were written in element order) and merged in.
+            //    Same order as a stable sort of all words by key.
+            detail::radix_sort_words(keys_new, 32, 64, team, scratch);
+            keys.resize(m2);
+            std::merge(keys_carried.begin(), keys_carried.end(), keys_new.begin(), keys_new.end(), keys.begin());
             first = false;
             std::swap(cur, next);
-            keys.swap(scratch);
             m = m2;
         }
-        tree.root = n == 0 ? 0 : n == 1 ? 0 : cur.node[0];
+        tree.root = n <= 1 ? 0 : cur.e[0].node;
         tree.info_ready = std::find(substituted.begin(), substituted.end(), 1) == substituted.end();
-        return detail::finish_bottom_up(tree, boxes, sc.view, lc, threads);
+        detail::optimize_merge_tree(tree, boxes, sc.view, lc, cfg.optimize, team.size(), &team);
+        Bvh bvh = detail::finish_bottom_up(tree, boxes, sc.view, lc, team.size(), &team);
+        return bvh;
     }
 
 private:
-    static constexpr std::size_t kChunk = 8192;
+    static constexpr std::size_t kChunk = 2048;
+    /// Pairing::mutual: a level of more than kGreedyFallbackMin elements
+    /// with fewer than 1 / kMinMutualShare of them in mutual pairs pairs
+    /// greedily instead (only ever seen on ties and chains; none of the
+    /// measured scenes has one).
+    static constexpr std::size_t kMinMutualShare = 16;
+    static constexpr std::size_t kGreedyFallbackMin = 256;
 
+    /// One element of a level: its working box, node id and leaf-collapse
+    /// data, kept together so a gather moves one record.
+    struct Elem {
+        AABB box;
+        std::uint32_t node;
+        detail::SubtreeCost sub;
+    };
     struct Level {
-        detail::RawArray<vec3> centre;
-        detail::RawArray<AABB> box;  // working boxes
-        detail::RawArray<std::uint32_t> node;
-        detail::RawArray<detail::SubtreeCost> sub;  // leaf-collapse data of the element's subtree
-        std::size_t size() const noexcept { return node.size(); }
-        void resize(std::size_t m) {
-            centre.resize(m);
-            box.resize(m);
-            node.resize(m);
-            sub.resize(m);
+        detail::RawArray<Elem> e;
+        detail::RawArray<vec3> centre;  // Metric::centre only
+        void resize(std::size_t m, bool centres) {
+            e.resize(m);
+            if (centres) centre.resize(m);
         }
     };
 
@@ -183,33 +281,138 @@ private:
         bool morton;
         int axis;
         detail::MortonQuantizer mq;
+        std::uint32_t operator()(const vec3& c) const noexcept {
+            return morton ? mq.code30(c) : detail::orderable_bits(c[axis]);
+        }
         std::uint64_t operator()(const vec3& c, std::uint32_t element) const noexcept {
-            const std::uint32_t k = morton ? mq.code30(c) : detail::orderable_bits(c[axis]);
-            return std::uint64_t(k) << 32 | element;
+            return std::uint64_t((*this)(c)) << 32 | element;
         }
     };
 
-    static float dist(const Level& L, std::uint32_t i, std::uint32_t j, bool area) noexcept {
-        if (area) {
-            const AABB& a = L.box[i];
-            const AABB& b = L.box[j];
-            const float ex = detail::clamp_extent(std::max(a.max.x, b.max.x) - std::min(a.min.x, b.min.x));
-            const float ey = detail::clamp_extent(std::max(a.max.y, b.max.y) - std::min(a.min.y, b.min.y));
-            const float ez = detail::clamp_extent(std::max(a.max.z, b.max.z) - std::min(a.min.z, b.min.z));
-            return ex * ey + ey * ez + ez * ex;
-        }
-        const vec3 d = L.centre[i] - L.centre[j];
+    /// Half the surface area of a ∪ b.
+    static float area_dist(const AABB& a, const AABB& b) noexcept {
+        const float ex = detail::clamp_extent(std::max(a.max.x, b.max.x) - std::min(a.min.x, b.min.x));
+        const float ey = detail::clamp_extent(std::max(a.max.y, b.max.y) - std::min(a.min.y, b.min.y));
+        const float ez = detail::clamp_extent(std::max(a.max.z, b.max.z) - std::min(a.min.z, b.min.z));
+        return ex * ey + ey * ez + ez * ex;
+    }
+    /// Squared distance between centres.
+    static float centre_dist(const vec3& a, const vec3& b) noexcept {
+        const vec3 d = a - b;
         return d.x * d.x + d.y * d.y + d.z * d.z;
     }
+    static float dist(const Level& L, std::size_t i, std::size_t j, bool area) noexcept {
+        return area ? area_dist(L.e[i].box, L.e[j].box) : centre_dist(L.centre[i], L.centre[j]);
+    }
 
-    /// Greedy windowed pairing of one sorted chunk S; writes new nodes from
-    /// info[first_pair] and next-level elements (and their keys) from
-    /// out[first_out].
-    static void pair_chunk(const Level& S, unsigned window, bool area, std::uint32_t n, std::uint32_t first_pair,
-                           std::uint32_t first_out, detail::MergeTree& tree, Level& out,
-                           detail::RawArray<std::uint64_t>& keys, const KeyMaker& key,
-                           const LeafCollapseConfig& lc) {
-        const std::size_t lo = 0, hi = S.size();
+    /// Where a chunk's results go: new node p is tree->info[first_pair + p];
+    /// next-level element t is level[first_out + t]; its sort word goes to
+    /// keys_new[first_new + p] (new node p) or keys_carried[first_wait + a]
+    /// (the a-th carried element).
+    struct Out {
+        std::uint32_t n, first_pair, first_new, first_out, first_wait;
+        bool centres;
+        detail::MergeTree* tree;
+        Level* level;
+        const detail::RawArray<std::uint64_t>* keys;  // this level's, sorted
+        detail::RawArray<std::uint64_t>* keys_carried;
+        detail::RawArray<std::uint64_t>* keys_new;
+        const KeyMaker* key;
+        const LeafCollapseConfig* lc;
+
+        /// Carries S[k] (sorted position k) as element t, the a-th carried one.
+        void carry(const Level& S, std::size_t k, std::uint32_t t, std::uint32_t a) const {
+            const std::uint32_t o = first_out + t;
+            level->e[o] = S.e[k];
+            if (centres) level->centre[o] = S.centre[k];
+            (*keys_carried)[first_wait + a] = ((*keys)[k] & ~std::uint64_t(0xFFFFFFFFu)) | o;
+        }
+        /// Makes the node over S[a], S[b] new node p and element t.
+        void pair(const Level& S, std::size_t a, std::size_t b, std::uint32_t p, std::uint32_t t) const {
+            const Elem& ea = S.e[a];
+            const Elem& eb = S.e[b];
+            const AABB box = merge(ea.box, eb.box);
+            const std::uint32_t id = first_pair + p;
+            const detail::SubtreeCost sub = detail::node_cost(box, ea.sub, eb.sub, *lc);
+            detail::MergeInfo& in = tree->info[id];
+            in.box = box;
+            in.kid[0] = ea.node;
+            in.kid[1] = eb.node;
+            in.sub = sub;
+            const std::uint32_t o = first_out + t;
+            const vec3 c = detail::box_centre(box);
+            level->e[o] = {box, n + id, sub};
+            if (centres) level->centre[o] = c;
+            (*keys_new)[first_new + p] = (*key)(c, o);
+        }
+    };
+
+    /// nn[i] for i in [lo, hi): the nearest of S[i−W … i+W] within the
+    /// chunk (nn[i] = i when i is alone). Each distance is computed once, for
+    /// both ends: fwd[k−1][i − lo] = dist(i, i + k). Ties are broken by a
+    /// key of the pair alone — the smaller offset |i − j|, then the pair
+    /// whose lower position is even (relative to the chunk), then the lower
+    /// position — so every pair has one rank for both ends, the chunk's
+    /// best-ranked pair is always mutual, and equal distances (identical
+    /// triangles, regular grids) pair up neighbours two by two.
+    static void nearest(const Level& S, std::size_t lo, std::size_t hi, unsigned window, bool area,
+                        detail::RawArray<std::uint32_t>& nn, std::vector<float>& fwd) {
+        const std::size_t len = hi - lo, W = std::min<std::size_t>(window, len > 0 ? len - 1 : 0);
+        if (W == 0) {
+            for (std::size_t i = lo; i < hi; ++i) nn[i] = static_cast<std::uint32_t>(i);
+            return;
+        }
+        fwd.resize(W * len);
+        for (std::size_t k = 1; k <= W; ++k) {
+            float* f = fwd.data() + (k - 1) * len;
+            if (area) {
+                for (std::size_t i = lo; i + k < hi; ++i) f[i - lo] = area_dist(S.e[i].box, S.e[i + k].box);
+            } else {
+                for (std::size_t i = lo; i + k < hi; ++i) f[i - lo] = centre_dist(S.centre[i], S.centre[i + k]);
+            }
+        }
+        // Candidate c (0 .. 2W−1, in position order: i−W … i−1, i+1 … i+W)
+        // ranks by the 64-bit key  bits(d) << 32 | (2k + parity) << 13 | c:
+        // distances are ≥ +0, so their bits order like them; the minimum
+        // key is the nearest, ties broken as above.
+        auto key_of = [&](float d, std::size_t k, std::size_t lower, std::size_t c) {
+            return std::uint64_t(std::bit_cast<std::uint32_t>(d)) << 32 |
+                   std::uint64_t(2 * k + ((lower - lo) & 1)) << 13 | c;
+        };
+        for (std::size_t i = lo; i < hi; ++i) {
+            const std::size_t r = i - lo;
+            std::uint64_t best = ~std::uint64_t(0);
+            for (std::size_t k = std::min(W, r); k >= 1; --k)
+                best = std::min(best, key_of(fwd[(k - 1) * len + r - k], k, i - k, W - k));
+            for (std::size_t k = 1; k <= W && r + k < len; ++k)
+                best = std::min(best, key_of(fwd[(k - 1) * len + r], k, i, W - 1 + k));
+            const std::size_t c = best & 0x1FFF;
+            nn[i] = static_cast<std::uint32_t>(c < W ? i - W + c : i - W + c + 1);
+        }
+    }
+
+    /// Mutual pairing of one sorted chunk: i and nn[i] merge when each is
+    /// the other's nearest; the others are carried to the next level. The
+    /// next level keeps the chunk's order (a new node at its first child).
+    static void pair_mutual(const Level& S, std::size_t lo, std::size_t hi, const detail::RawArray<std::uint32_t>& nn,
+                            const Out& out) {
+        std::uint32_t p = 0, t = 0, a = 0;
+        for (std::size_t i = lo; i < hi; ++i) {
+            const std::uint32_t j = nn[i];
+            if (j == i || nn[j] != i) {
+                out.carry(S, i, t++, a++);
+            } else if (i < j) {
+                out.pair(S, i, j, p++, t++);
+            }
+        }
+    }
+
+    /// The thesis's greedy windowed pairing of one sorted chunk S[lo, hi):
+    /// the first unpaired element pairs with the nearest of the next W
+    /// unpaired ones (ties: the earlier), until at most one is left, which
+    /// is carried.
+    static void pair_greedy(const Level& S, std::size_t lo, std::size_t hi, unsigned window, bool area,
+                            const Out& out) {
         std::vector<std::uint32_t> win(window + 1);
         std::size_t wn = 0, p = lo;
         std::uint32_t t = 0;
@@ -218,12 +421,7 @@ private:
             if (wn == 0) break;
             const std::uint32_t k = win[0];
             if (wn == 1) {  // the chunk's last element: carried over
-                const std::uint32_t o = first_out + t;
-                out.centre[o] = S.centre[k];
-                out.box[o] = S.box[k];
-                out.node[o] = S.node[k];
-                out.sub[o] = S.sub[k];
-                keys[o] = key(S.centre[k], o);
+                out.carry(S, k, t, 0);
                 break;
             }
             std::size_t best = 1;
@@ -235,21 +433,7 @@ private:
                     best = j;
                 }
             }
-            const std::uint32_t b = win[best];
-            const AABB box = merge(S.box[k], S.box[b]);
-            const std::uint32_t id = first_pair + t;
-            const detail::SubtreeCost sub = detail::node_cost(box, S.sub[k], S.sub[b], lc);
-            detail::MergeInfo& in = tree.info[id];
-            in.box = box;
-            in.kid[0] = S.node[k];
-            in.kid[1] = S.node[b];
-            in.sub = sub;
-            const std::uint32_t o = first_out + t;
-            out.box[o] = box;
-            out.centre[o] = detail::box_centre(box);
-            out.node[o] = n + id;
-            out.sub[o] = sub;
-            keys[o] = key(out.centre[o], o);
+            out.pair(S, k, win[best], t, t);
             ++t;
             // drop win[0] and win[best]
             std::size_t w = 0;

@@ -5,10 +5,15 @@
 //   o.window = 16;
 //   Bvh bvh = build_bvh(mesh, o);
 //
+// Settings left unset (metric, pairing, optimize) take the chosen builder's
+// Config default, so BuildOptions{} with a builder picked gives the same tree
+// as that builder's default Config.
+//
 // Compile-time use stays available and pays only for the builder it names:
 // build_bvh<SortAxisBuilder>(mesh, cfg). This header includes all four.
 #pragma once
 
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -25,14 +30,19 @@ struct BuildOptions {
     enum class Builder { sah, pairwise, sortaxis, ploc };
     enum class Axis { x, longest, morton };
     enum class Metric { centre, area };
+    enum class Pairing { greedy, mutual };
 
     Builder builder = Builder::sah;
     unsigned max_leaf_size = 8;  ///< all builders
     unsigned threads = 0;        ///< all builders; 0 = all hardware threads
     unsigned window = SortAxisBuilder::Config{}.window;  ///< sortaxis: W
     Axis axis = Axis::morton;    ///< sortaxis
-    Metric metric = Metric::centre;  ///< pairwise, sortaxis
+    std::optional<Metric> metric;    ///< pairwise, sortaxis (unset: the builder's default)
+    std::optional<Pairing> pairing;  ///< sortaxis (unset: the builder's default)
     unsigned radius = PlocBuilder::Config{}.radius;  ///< ploc: R
+    /// Post-pass (bvh/optimize.hpp) for sortaxis and ploc (unset: the
+    /// builder's default: on for ploc, off for sortaxis).
+    std::optional<OptimizeConfig> optimize;
 
     static Builder parse_builder(std::string_view s) {
         if (s == "sah") return Builder::sah;
@@ -62,6 +72,13 @@ struct BuildOptions {
     }
     static const char* name(Axis a) { return a == Axis::x ? "x" : a == Axis::longest ? "longest" : "morton"; }
     static const char* name(Metric m) { return m == Metric::area ? "area" : "centre"; }
+    static const char* name(const std::optional<Metric>& m) { return m ? name(*m) : "default"; }
+    static const char* name(Pairing p) { return p == Pairing::greedy ? "greedy" : "mutual"; }
+    static Pairing parse_pairing(std::string_view s) {
+        if (s == "greedy") return Pairing::greedy;
+        if (s == "mutual") return Pairing::mutual;
+        throw std::invalid_argument("unknown pairing '" + std::string(s) + "' (known: greedy, mutual)");
+    }
 };
 
 /// Builds with the builder and settings named in `o`.
@@ -72,8 +89,9 @@ inline Bvh build_bvh(std::span<const AABB> boxes, std::span<const vec3> centers,
             PairwiseBuilder::Config c;
             c.max_leaf_size = o.max_leaf_size;
             c.threads = o.threads;
-            c.metric = o.metric == BuildOptions::Metric::area ? PairwiseBuilder::Config::Metric::area
-                                                               : PairwiseBuilder::Config::Metric::centre;
+            if (o.metric)
+                c.metric = *o.metric == BuildOptions::Metric::area ? PairwiseBuilder::Config::Metric::area
+                                                                    : PairwiseBuilder::Config::Metric::centre;
             return PairwiseBuilder::build(boxes, centers, c);
         }
         case B::sortaxis: {
@@ -84,8 +102,13 @@ inline Bvh build_bvh(std::span<const AABB> boxes, std::span<const vec3> centers,
             c.axis = o.axis == BuildOptions::Axis::x         ? SortAxisBuilder::Config::Axis::x
                      : o.axis == BuildOptions::Axis::longest ? SortAxisBuilder::Config::Axis::longest
                                                              : SortAxisBuilder::Config::Axis::morton;
-            c.metric = o.metric == BuildOptions::Metric::area ? SortAxisBuilder::Config::Metric::area
-                                                               : SortAxisBuilder::Config::Metric::centre;
+            if (o.metric)
+                c.metric = *o.metric == BuildOptions::Metric::area ? SortAxisBuilder::Config::Metric::area
+                                                                    : SortAxisBuilder::Config::Metric::centre;
+            if (o.pairing)
+                c.pairing = *o.pairing == BuildOptions::Pairing::greedy ? SortAxisBuilder::Config::Pairing::greedy
+                                                                        : SortAxisBuilder::Config::Pairing::mutual;
+            if (o.optimize) c.optimize = *o.optimize;
             return SortAxisBuilder::build(boxes, centers, c);
         }
         case B::ploc: {
@@ -93,6 +116,7 @@ inline Bvh build_bvh(std::span<const AABB> boxes, std::span<const vec3> centers,
             c.max_leaf_size = o.max_leaf_size;
             c.threads = o.threads;
             c.radius = o.radius;
+            if (o.optimize) c.optimize = *o.optimize;
             return PlocBuilder::build(boxes, centers, c);
         }
         default: {
