@@ -469,9 +469,9 @@ RK_INLINE bool rk_cut_out(const rk_alpha_scene* a, __global const rk_triangle* t
    Tracer<.., kAlpha>::closest / any (render/shade.hpp): with `alpha`, the cut-out test in the
    leaves (a cut-out candidate is skipped and the ray goes on through it); with `steps`, the
    inner nodes + leaves visited are written there (raykit::TraversalStats nodes + leaves: same
-   walk, same order, so the same count). This duplicates rk_trace_tree's walk rather than
-   changing it: the plain trace kernels keep their code, and this one is used only when a scene
-   has cut-outs or a hook asks for steps. The inner-node step and the pop are trace.hpp's. */
+   walk, same order, so the same count). Its own loop (the leaf test with cut-outs, the count)
+   around trace.hpp's inner-node step and pop (rk_descend, rk_pop), so the plain trace kernels
+   stay as they are; used only when a scene has cut-outs or a hook asks for steps. */
 RK_INLINE bool rk_dr_walk(__global const rk_node* restrict nodes, __global const uint* restrict prim_ids,
                           __global const rk_triangle* restrict tris, __global const float* restrict pos,
                           const uint node_count, const rk_ray* ray, const int any, rk_hit* hit,
