@@ -71,6 +71,7 @@
 #include <cstdint>
 #include <span>
 #include <stdexcept>
+#include <type_traits>
 #include <vector>
 
 #include "raykit/bvh/collapse.hpp"
@@ -238,7 +239,7 @@ struct SortAxisBuilder {
             //    their order, so only the new nodes are sorted (stable, by
             //    key; they were written in element order) and merged in.
             //    Same order as a stable sort of all words by key.
-            detail::radix_sort_words(keys_new, 32, 64, team, scratch);
+            sort_nearly_sorted(keys_new, team, scratch);
             keys.resize(m2);
             std::merge(keys_carried.begin(), keys_carried.end(), keys_new.begin(), keys_new.end(), keys.begin());
             first = false;
@@ -260,6 +261,28 @@ private:
     /// measured scenes has one).
     static constexpr std::size_t kMinMutualShare = 16;
     static constexpr std::size_t kGreedyFallbackMin = 256;
+
+    /// Sorts sort words (all distinct) that are nearly in order: insertion
+    /// sort while it moves few words, else the radix sort. Either gives the
+    /// one sorted order of the words.
+    static void sort_nearly_sorted(detail::RawArray<std::uint64_t>& a, detail::WorkTeam& team,
+                                   detail::RawArray<std::uint64_t>& scratch) {
+        const std::size_t m = a.size();
+        std::size_t budget = 4 * m + 64;
+        std::size_t i = 1;
+        for (; i < m; ++i) {
+            const std::uint64_t x = a[i];
+            std::size_t j = i;
+            while (j > 0 && a[j - 1] > x && budget > 0) {
+                a[j] = a[j - 1];
+                --j;
+                --budget;
+            }
+            a[j] = x;
+            if (budget == 0) break;
+        }
+        if (i < m) detail::radix_sort_words(a, 32, 64, team, scratch);
+    }
 
     /// One element of a level: its working box, node id and leaf-collapse
     /// data, kept together so a gather moves one record.
@@ -379,7 +402,8 @@ private:
             return std::uint64_t(std::bit_cast<std::uint32_t>(d)) << 32 |
                    std::uint64_t(2 * k + ((lower - lo) & 1)) << 13 | c;
         };
-        for (std::size_t i = lo; i < hi; ++i) {
+        // the general case (chunk ends, any W)
+        auto pick = [&](std::size_t i) {
             const std::size_t r = i - lo;
             std::uint64_t best = ~std::uint64_t(0);
             for (std::size_t k = std::min(W, r); k >= 1; --k)
@@ -388,6 +412,30 @@ private:
                 best = std::min(best, key_of(fwd[(k - 1) * len + r], k, i, W - 1 + k));
             const std::size_t c = best & 0x1FFF;
             nn[i] = static_cast<std::uint32_t>(c < W ? i - W + c : i - W + c + 1);
+        };
+        // interior elements with a small window: the same, unrolled
+        auto interior = [&]<std::size_t K>(std::integral_constant<std::size_t, K>) {
+            for (std::size_t i = lo + K; i + K < hi; ++i) {
+                const std::size_t r = i - lo;
+                std::uint64_t best = ~std::uint64_t(0);
+                for (std::size_t k = K; k >= 1; --k)
+                    best = std::min(best, key_of(fwd[(k - 1) * len + r - k], k, i - k, K - k));
+                for (std::size_t k = 1; k <= K; ++k) best = std::min(best, key_of(fwd[(k - 1) * len + r], k, i, K - 1 + k));
+                const std::size_t c = best & 0x1FFF;
+                nn[i] = static_cast<std::uint32_t>(c < K ? i - K + c : i - K + c + 1);
+            }
+        };
+        if (W <= 4 && len > 2 * W) {
+            for (std::size_t i = lo; i < lo + W; ++i) pick(i);
+            switch (W) {
+                case 1: interior(std::integral_constant<std::size_t, 1>{}); break;
+                case 2: interior(std::integral_constant<std::size_t, 2>{}); break;
+                case 3: interior(std::integral_constant<std::size_t, 3>{}); break;
+                default: interior(std::integral_constant<std::size_t, 4>{}); break;
+            }
+            for (std::size_t i = hi - W; i < hi; ++i) pick(i);
+        } else {
+            for (std::size_t i = lo; i < hi; ++i) pick(i);
         }
     }
 
