@@ -401,18 +401,19 @@ inline std::size_t sort_chunks(std::size_t m, unsigned threads) noexcept {
 
 /// Stable LSD radix sort of (keys, vals) by the low `bits` bits of the keys,
 /// 11 bits per pass; passes where every key has the same digit are skipped.
-template <class Key>
-void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, unsigned threads) {
+/// `run(n, chunks, fn)` runs the chunked passes (parallel_chunks or a
+/// WorkTeam, below).
+template <class Key, class Run>
+void radix_sort_with(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, std::size_t chunks, Run&& run) {
     constexpr int kDigit = 11;
     constexpr std::size_t kBins = std::size_t(1) << kDigit;
     const std::size_t m = keys.size();
     if (m < 2) return;
     RawArray<Key> k2(m);
     RawArray<std::uint32_t> v2(m);
-    const std::size_t chunks = sort_chunks(m, threads);
     std::vector<std::uint32_t> hist(chunks * kBins);
     for (int shift = 0; shift < bits; shift += kDigit) {
-        parallel_chunks(m, chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+        run(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
             std::uint32_t* h = hist.data() + c * kBins;
             std::fill(h, h + kBins, 0u);
             for (std::size_t i = lo; i < hi; ++i) ++h[(keys[i] >> shift) & (kBins - 1)];
@@ -429,7 +430,7 @@ void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, un
                 hist[c * kBins + b] = sum;
                 sum += h;
             }
-        parallel_chunks(m, chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+        run(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
             std::uint32_t* h = hist.data() + c * kBins;
             for (std::size_t i = lo; i < hi; ++i) {
                 const std::uint32_t pos = h[(keys[i] >> shift) & (kBins - 1)]++;
@@ -440,6 +441,18 @@ void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, un
         keys.swap(k2);
         vals.swap(v2);
     }
+}
+
+template <class Key>
+void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, unsigned threads) {
+    radix_sort_with(keys, vals, bits, sort_chunks(keys.size(), threads),
+                    [threads](std::size_t n, std::size_t chunks, auto&& fn) { parallel_chunks(n, chunks, threads, fn); });
+}
+
+template <class Key>
+void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, WorkTeam& team) {
+    radix_sort_with(keys, vals, bits, sort_chunks(keys.size(), team.size()),
+                    [&team](std::size_t n, std::size_t chunks, auto&& fn) { team.chunks(n, chunks, fn); });
 }
 
 /// Stable LSD radix sort of 64-bit words by their bits [lo_bit, hi_bit)

@@ -377,22 +377,23 @@ private:
     bool treelet(std::uint32_t v) {
         std::array<std::uint32_t, kTreeletLeaves> leaf{};
         std::array<std::uint32_t, kTreeletLeaves> inner_ids{};
+        std::array<float, kTreeletLeaves> la{};  // leaf areas, -1 for primitives (never opened)
         int nl = 0, ni = 0;
-        leaf[nl++] = kid_[v - n_][0];
-        leaf[nl++] = kid_[v - n_][1];
+        auto add = [&](int at, std::uint32_t id) {
+            leaf[at] = id;
+            la[at] = inner(id) ? area(id) : -1.0f;
+        };
+        add(nl++, kid_[v - n_][0]);
+        add(nl++, kid_[v - n_][1]);
         while (nl < kTreeletLeaves) {
-            int pick = -1;
-            float pa = -1.0f;
-            for (int i = 0; i < nl; ++i)
-                if (inner(leaf[i]) && area(leaf[i]) > pa) {
-                    pa = area(leaf[i]);
-                    pick = i;
-                }
-            if (pick < 0) break;
+            int pick = 0;
+            for (int i = 1; i < nl; ++i)
+                if (la[i] > la[pick]) pick = i;
+            if (la[pick] < 0.0f) break;
             const std::uint32_t x = leaf[pick];
             inner_ids[ni++] = x;
-            leaf[pick] = kid_[x - n_][0];
-            leaf[nl++] = kid_[x - n_][1];
+            add(pick, kid_[x - n_][0]);
+            add(nl++, kid_[x - n_][1]);
         }
         if (nl < 3) return false;
         const int S = 1 << nl;

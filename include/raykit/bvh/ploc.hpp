@@ -93,7 +93,7 @@ struct PlocBuilder {
                 keys[i] = mq(sc[i]);
                 order[i] = static_cast<std::uint32_t>(i);
             });
-            detail::radix_sort(keys, order, 63, threads);
+            detail::radix_sort(keys, order, 63, team);
         }
         Clusters cur, next;
         cur.resize(n);
