@@ -135,11 +135,17 @@ public:
 
     void run(const OptimizeConfig& oc) {
         if (n_ < 3) return;
-        if (oc.reinsert_share > 0.0f) reinsert(oc.reinsert_share);
+        if (oc.reinsert_share > 0.0f) {
+            reinsert(oc.reinsert_share);
+            costs_valid_ = false;  // the moved paths; a treelet round evaluates every node first
+        }
         flags_.assign(box_.size(), 0);
         changed_.assign(box_.size(), 0);
         for (std::size_t id = n_; id < box_.size(); ++id) flags_[id] = kFresh | kPending;
-        for (unsigned r = 0; r < oc.treelet_rounds; ++r) treelet_round(std::max(1u, oc.treelet_min_prims));
+        for (unsigned r = 0; r < oc.treelet_rounds; ++r) {
+            treelet_round(std::max(1u, oc.treelet_min_prims));
+            costs_valid_ = true;
+        }
     }
 
     /// Writes the tree back into the merge tree: inner nodes renumbered
@@ -149,7 +155,8 @@ public:
         MergeTree& t = t_;
         std::vector<std::uint32_t> order;
         post_order(root_, order);
-        for (const std::uint32_t v : order) eval(v);
+        if (!costs_valid_)
+            for (const std::uint32_t v : order) eval(v);
         if (!(inner(root_) && cost_[root_] < start_cost_)) {
             kid_ = start_kid_;
             root_ = start_root_;
@@ -518,7 +525,7 @@ private:
         // Nodes above a frontier run after the independent subtrees below it,
         // which run on separate threads; any children-first order gives the
         // same result.
-        const std::uint32_t big = std::max<std::uint32_t>(8192, n_ / 64);
+        const std::uint32_t big = std::max<std::uint32_t>(1024, n_ / 256);
         std::vector<std::uint32_t> top, frontier;
         std::vector<std::uint32_t> st{root_};
         while (!st.empty()) {
@@ -555,6 +562,7 @@ private:
     WorkTeam* team_;
     std::uint32_t root_ = 0;
     bool all_reachable_;
+    bool costs_valid_ = true;  // cost_ and count_ hold for every reachable node
     float start_cost_ = 0.0f;
     std::uint32_t start_root_ = 0;
     std::vector<std::array<std::uint32_t, 2>> start_kid_;
