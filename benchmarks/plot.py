@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
 """Charts of speed against quality from a bench_builders JSON run.
 
-    bench_builders --benchmark_out=builders.json --benchmark_out_format=json
+    bench_builders --benchmark_filter=threads:2 --benchmark_repetitions=3 \
+        --benchmark_report_aggregates_only=true --benchmark_out=builders.json --benchmark_out_format=json
     python3 benchmarks/plot.py builders.json docs/
 
+With repetitions, each case's median (time and counters) is used; a run
+without them is read as it is.
 Writes, per scene, docs/builders_<scene>_sah.png (build time against SAH
 cost relative to the binned-SAH builder, with the issue's targets: 1.15x and
 1.05x, and Embree LOW's build time as a vertical line) and
@@ -53,10 +56,14 @@ def load(path):
     with open(path) as f:
         data = json.load(f)
     rows = defaultdict(list)  # scene -> [(label, family, threads, ms, sah, primary, random)]
-    for b in data["benchmarks"]:
+    benches = data["benchmarks"]
+    if any(b.get("aggregate_name") for b in benches):
+        benches = [b for b in benches if b.get("aggregate_name") == "median"]
+    for b in benches:
         if b.get("error_occurred"):
             continue
-        name = re.sub(r"/(min_time|iterations):[^/]*|/real_time", "", b["name"])
+        name = re.sub(r"_median$", "", b["name"])
+        name = re.sub(r"/(min_time|iterations|repeats):[^/]*|/real_time", "", name)
         m = re.match(r"builders/([^/]+)/(.+)/threads:(\d+)$", name)
         if not m:
             continue
