@@ -46,7 +46,8 @@ struct UsageError : std::runtime_error {
 };
 
 constexpr const char* kUsage = R"(usage:
-  raykit info SCENE.obj [--builder NAME] [--window W] [--axis A] [--metric M] [--radius R] [--leaf N] [--threads T] [--json]
+  raykit info SCENE.obj [--builder NAME] [--window W] [--axis A] [--metric M] [--pairing P] [--radius R] [--optimize on|off]
+                        [--leaf N] [--threads T] [--json]
   raykit info --device         lists OpenCL platforms and devices, and which one raykit picks and why
   raykit animate-test SCENE.obj [--frames N]   a "wave" vertex hook moves a dynamic copy each frame: refit, TLAS, trace, device and CPU
   raykit trace SCENE.obj RAYS.txt HITS.txt [--builder NAME] [--any-hit] [--test watertight|mt|thesis] [--threads T] [--device cpu|cl]
@@ -60,10 +61,12 @@ constexpr const char* kUsage = R"(usage:
 
   --builder NAME   BVH builder: sah (binned SAH, default), pairwise, sortaxis, ploc
   --leaf N         largest leaf (primitives), default 8
-  --window W       sortaxis: candidates per element, default 6
+  --window W       sortaxis: candidates per element, default 2 (the thesis used 6)
   --axis A         sortaxis: x | longest | morton (default)
-  --metric M       pairwise, sortaxis: centre (default) | area
-  --radius R       ploc: neighbours searched each way, default 8
+  --metric M       pairwise: centre (default) | area; sortaxis: area (default) | centre
+  --pairing P      sortaxis: mutual (default: mutual nearest neighbours) | greedy (the thesis's rule)
+  --radius R       ploc: neighbours searched each way, default 4
+  --optimize on|off  sortaxis, ploc: post-pass (reinsertion + treelets); default on for ploc, off for sortaxis
   --threads T      worker threads, 0 = all (default)
   --test NAME      ray/triangle test: watertight (default), mt (Moller-Trumbore), thesis
 skin: prints the skinned position of every triangle corner (triangles in file order), one "x y z" per line;
@@ -115,8 +118,8 @@ struct Args {
 };
 
 /// Options every command that builds a tree takes.
-const std::vector<std::string> kTreeFlags = {"--builder", "--leaf", "--threads", "--window", "--axis", "--metric",
-                                             "--radius"};
+const std::vector<std::string> kTreeFlags = {"--builder", "--leaf",   "--threads", "--window",
+                                             "--axis",    "--metric", "--pairing", "--radius", "--optimize"};
 
 std::vector<std::string> with_tree_flags(std::vector<std::string> v) {
     v.insert(v.end(), kTreeFlags.begin(), kTreeFlags.end());
@@ -128,7 +131,14 @@ BuildOptions tree_options(const Args& a) {
     try {
         o.builder = BuildOptions::parse_builder(a.get("--builder", "sah"));
         o.axis = BuildOptions::parse_axis(a.get("--axis", "morton"));
-        o.metric = BuildOptions::parse_metric(a.get("--metric", "centre"));
+        // unset settings keep the chosen builder's own defaults
+        if (a.opt.count("--metric")) o.metric = BuildOptions::parse_metric(a.get("--metric", ""));
+        if (a.opt.count("--pairing")) o.pairing = BuildOptions::parse_pairing(a.get("--pairing", ""));
+        if (a.opt.count("--optimize")) {
+            const std::string v = a.get("--optimize", "");
+            if (v != "on" && v != "off") throw std::invalid_argument("--optimize takes on or off, not '" + v + "'");
+            o.optimize = v == "on" ? OptimizeConfig{} : OptimizeConfig::off();
+        }
     } catch (const std::invalid_argument& e) {
         throw UsageError(e.what());
     }
@@ -146,7 +156,7 @@ std::string describe(const BuildOptions& o) {
     std::string s = BuildOptions::name(o.builder);
     if (o.builder == BuildOptions::Builder::sortaxis)
         s += std::string(" window ") + std::to_string(o.window) + " axis " + BuildOptions::name(o.axis) + " metric " +
-             BuildOptions::name(o.metric);
+             BuildOptions::name(o.metric) + " pairing " + (o.pairing ? BuildOptions::name(*o.pairing) : "default");
     if (o.builder == BuildOptions::Builder::pairwise) s += std::string(" metric ") + BuildOptions::name(o.metric);
     if (o.builder == BuildOptions::Builder::ploc) s += " radius " + std::to_string(o.radius);
     return s;

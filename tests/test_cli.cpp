@@ -75,6 +75,8 @@ TEST(Cli, UsageErrorsExitWithTwo) {
     expect_clean_error(run("info a.obj --leaf"), 2, "--leaf needs a value");
     expect_clean_error(run("info a.obj --leaf x"), 2, "--leaf expects a number");
     expect_clean_error(run("info a.obj --builder magic"), 2, "unknown builder");
+    expect_clean_error(run("info a.obj --builder sortaxis --pairing best"), 2, "unknown pairing");
+    expect_clean_error(run("info a.obj --builder ploc --optimize maybe"), 2, "--optimize takes on or off");
     expect_clean_error(run("trace a.obj r.txt"), 2, "trace takes");
     expect_clean_error(run("trace a.obj r.txt h.txt --test fancy"), 2, "unknown --test");
     EXPECT_EQ(run("--help").code, 0);
@@ -163,6 +165,17 @@ TEST(Cli, InfoJsonAndCheck) {
     r = run("check " + scene.string() + " --rays 500 --seed 3");
     EXPECT_EQ(r.code, 0) << r.out << r.err;
     EXPECT_NE(r.out.find("0 disagreements"), std::string::npos) << r.out;
+    // flags left out take the builder's own defaults (sortaxis: area, mutual, W 2; ploc: post-pass on)
+    const auto sah_of = [&](const std::string& flags) {
+        const Result x = run("info " + scene.string() + " --json " + flags);
+        EXPECT_EQ(x.code, 0) << flags << ": " << x.err;
+        const auto at = x.out.find("\"sah_cost\": ");
+        return at == std::string::npos ? std::string("?") : x.out.substr(at, x.out.find_first_of(",}", at) - at);
+    };
+    EXPECT_EQ(sah_of("--builder sortaxis"), sah_of("--builder sortaxis --metric area --pairing mutual --window 2"));
+    EXPECT_NE(sah_of("--builder sortaxis"), sah_of("--builder sortaxis --pairing greedy --window 6"));
+    EXPECT_EQ(sah_of("--builder ploc"), sah_of("--builder ploc --optimize on"));
+    EXPECT_NE(sah_of("--builder ploc"), sah_of("--builder ploc --optimize off"));
     r = run("generate torus " + (tmpdir() / "t.obj").string() + " --tris 1000");
     EXPECT_EQ(r.code, 0) << r.err;
     EXPECT_EQ(load_obj(tmpdir() / "t.obj").triangle_count(), 1024u);  // 2·nu·nv, nv = 16, nu = 32
