@@ -170,35 +170,23 @@ void BM_trace(benchmark::State& state, std::string scene_name, std::string set, 
     const auto& rays = rkbench::rays(*s, set);
     const Check& c = check(*s, set);
     Outputs out(rays.size());
+    // every raykit configuration: the same loop over (tree, triangle source)
+    const auto time_raykit = [&](const auto& tree, const auto& tris) {
+        for (auto _ : state) {
+            trace_raykit(tree, tris, rays, any, threads, out);
+            benchmark::ClobberMemory();
+        }
+        state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
+    };
+    const raykit::MeshView mesh(s->mesh);
     if (lib == Lib::raykit) {
-        const raykit::Bvh& bvh = rkbench::raykit_bvh(*s);
-        for (auto _ : state) {
-            trace_raykit(bvh, raykit::MeshView(s->mesh), rays, any, threads, out);
-            benchmark::ClobberMemory();
-        }
-        state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
-    } else if (lib == Lib::wide8copy) {
-        const raykit::WideBvh8& wide = rkbench::raykit_wide8_bvh(*s);
-        const raykit::LeafTriangles& lt = rkbench::raykit_wide8_leaf_triangles(*s);
-        for (auto _ : state) {
-            trace_raykit(wide, lt, rays, any, threads, out);
-            benchmark::ClobberMemory();
-        }
-        state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
-    } else if (lib == Lib::wide8) {
-        const raykit::WideBvh8& wide = rkbench::raykit_wide8_bvh(*s);
-        for (auto _ : state) {
-            trace_raykit(wide, raykit::MeshView(s->mesh), rays, any, threads, out);
-            benchmark::ClobberMemory();
-        }
-        state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
+        time_raykit(rkbench::raykit_bvh(*s), mesh);
     } else if (lib == Lib::wide) {
-        const raykit::WideBvh& wide = rkbench::raykit_wide_bvh(*s);
-        for (auto _ : state) {
-            trace_raykit(wide, raykit::MeshView(s->mesh), rays, any, threads, out);
-            benchmark::ClobberMemory();
-        }
-        state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
+        time_raykit(rkbench::raykit_wide_bvh(*s), mesh);
+    } else if (lib == Lib::wide8) {
+        time_raykit(rkbench::raykit_wide8_bvh(*s), mesh);
+    } else if (lib == Lib::wide8copy) {
+        time_raykit(rkbench::raykit_wide8_bvh(*s), rkbench::raykit_wide8_leaf_triangles(*s));
     } else {
 #ifdef RAYKIT_HAVE_EMBREE
         const EmbreeScene& es = embree_scene(*s);

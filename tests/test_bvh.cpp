@@ -478,6 +478,7 @@ void simd_box_test_equals_scalar() {
             const AABB box = n.box(c);
             const bool bh = slab_test(&box.min.x, &box.max.x, r.org, RayInv(r.dir), r.tmin, r.tmax, tb);
             ASSERT_EQ(bh, bool(ms >> c & 1u)) << "iteration " << iter << " child " << c;
+            ASSERT_EQ(bh, wr.test_box(box, r.tmin, r.tmax)) << "root-box test, iteration " << iter << " child " << c;
             if (bh) {
                 ASSERT_EQ(tb, ts[c]);
             }

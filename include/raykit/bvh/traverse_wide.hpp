@@ -116,6 +116,20 @@ struct WideSlabRay {
 #endif
     }
 
+    /// One box, with slab_test()'s decision (intersect/slab.hpp), from this
+    /// ray's reciprocals (no second division per ray).
+    bool test_box(const AABB& b, float tmin, float tmax) const noexcept {
+        const float* lo = &b.min.x;
+        const float* hi = &b.max.x;
+        float t0 = tmin, t1 = tmax;
+        for (int a = 0; a < 3; ++a) {
+            const bool neg = near_row[a] & 1;
+            t0 = robust_max(((neg ? hi : lo)[a] - org[a]) * inv[a], t0);
+            t1 = robust_min(((neg ? lo : hi)[a] - org[a]) * inv[a], t1);
+        }
+        return t0 <= t1 * kSlabExitScale;
+    }
+
     template <int W>
     unsigned test_scalar(const WideNodeT<W>& n, float tmin, float tmax, float* RAYKIT_RESTRICT t) const noexcept {
         unsigned mask = 0;
@@ -138,11 +152,7 @@ bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf
     if (bvh.nodes.empty()) return false;
     const WideNodeT<W>* RAYKIT_RESTRICT nodes = bvh.nodes.data();
     const WideSlabRay wr(ray);
-    {
-        float t_root;  // the binary traversal's first test, with the same result
-        if (!slab_test(&bvh.bounds.min.x, &bvh.bounds.max.x, ray.org, RayInv(ray.dir), ray.tmin, tmax, t_root))
-            return false;
-    }
+    if (!wr.test_box(bvh.bounds, ray.tmin, tmax)) return false;  // the binary traversal's first test
 
     struct Entry {
         std::uint32_t index, count;  // count 0: a wide node; else a leaf's prim_ids range
