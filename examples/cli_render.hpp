@@ -199,6 +199,24 @@ struct ProgressBar {
     }
 };
 
+/// Writes OUT.png (or .pfm) and the optional --pfm copy; returns the ms it took.
+inline double write_outputs(const Image& img, const Parsed& p) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::filesystem::path out = p.pos[1];
+    PngOptions po;
+    po.alpha = p.has("--alpha");
+    if (out.extension() == ".pfm" || out.extension() == ".PFM") write_pfm(img, out);
+    else write_png(img, out, po);
+    if (auto* v = p.last("--pfm")) write_pfm(img, (*v)[0]);
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// A progress bar on stderr (when it is a terminal) hooked to `set.progress`.
+inline void attach_progress(ProgressBar& bar, RenderSettings& set, bool quiet) {
+    bar.enabled = !quiet && ProgressBar::stderr_is_terminal();
+    set.progress = [&bar](std::size_t done, std::size_t total) { bar.update(done, total); };
+}
+
 }  // namespace raykit::detail::cli_render
 
 inline int raykit_cli_render(int argc, char** argv, int first_arg) {
@@ -304,18 +322,10 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
         warm.spp = 1;
         (void)renderer.render(cam, warm, &first);
         cr::ProgressBar bar;
-        bar.enabled = !quiet && cr::ProgressBar::stderr_is_terminal();
-        set.progress = [&bar](std::size_t done, std::size_t total) { bar.update(done, total); };
+        cr::attach_progress(bar, set, quiet);
         const Image img = renderer.render(cam, set, &st);
         bar.finish();
-        t0 = Clock::now();
-        const std::filesystem::path out = p.pos[1];
-        PngOptions po;
-        po.alpha = p.has("--alpha");
-        if (out.extension() == ".pfm" || out.extension() == ".PFM") write_pfm(img, out);
-        else write_png(img, out, po);
-        if (auto* v = p.last("--pfm")) write_pfm(img, (*v)[0]);
-        const double write_ms = ms_since(t0);
+        const double write_ms = cr::write_outputs(img, p);
         if (!quiet)
             std::printf("raykit render: %ux%u, %u spp, %s, device %s: %llu rays (primary %llu, shadow %llu, "
                         "continuation %llu), %u bounces, peak queue %zu rays, %.2f Mrays/s; ms: load %.1f, build %.1f, "
@@ -333,21 +343,11 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
 
     // ---- render
     cr::ProgressBar bar;
-    bar.enabled = !quiet && cr::ProgressBar::stderr_is_terminal();
-    set.progress = [&bar](std::size_t done, std::size_t total) { bar.update(done, total); };
+    cr::attach_progress(bar, set, quiet);
     RenderStats st;
     const Image img = render_cpu(rs.view(), cam, set, &st);
     bar.finish();
-
-    // ---- write
-    t0 = Clock::now();
-    const std::filesystem::path out = p.pos[1];
-    PngOptions po;
-    po.alpha = p.has("--alpha");
-    if (out.extension() == ".pfm" || out.extension() == ".PFM") write_pfm(img, out);
-    else write_png(img, out, po);
-    if (auto* v = p.last("--pfm")) write_pfm(img, (*v)[0]);
-    const double write_ms = ms_since(t0);
+    const double write_ms = cr::write_outputs(img, p);
 
     if (!quiet) {
         const RayCounts& r = st.rays;
