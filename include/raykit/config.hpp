@@ -26,3 +26,14 @@ static_assert(RAYKIT_BVH_MAX_DEPTH >= 40, "RAYKIT_BVH_MAX_DEPTH must be at least
 #define RAYKIT_LAMBDA_INLINE
 #define RAYKIT_RESTRICT
 #endif
+
+/// 1 when the target has a fused multiply-add instruction (x86 FMA3, or any
+/// target whose compiler says fmaf is fast, e.g. AArch64): raykit's
+/// watertight test then fuses its two multiply-adds explicitly (std::fma),
+/// else it rounds each product. Either way the choice is the code's, not the
+/// optimizer's, so answers do not change with -O levels or -ffp-contract.
+#if defined(__FMA__) || defined(__FP_FAST_FMAF) || defined(__ARM_FEATURE_FMA)
+#define RAYKIT_FAST_FMA 1
+#else
+#define RAYKIT_FAST_FMA 0
+#endif

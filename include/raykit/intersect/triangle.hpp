@@ -32,6 +32,45 @@ struct TriHit {
 };
 
 struct Watertight {
+    /// The two multiply-adds of the test, rounded the same way at every
+    /// optimization level: fused (one rounding) where the target has FMA,
+    /// else each product rounded on its own. Written out, not left to the
+    /// compiler's contraction, so a build's answers do not depend on -O or
+    /// -ffp-contract; the 4-wide test (intersect/triangle4.hpp) and the
+    /// device (kernels/raykit/kernels/common.hpp) round the same way.
+    static RAYKIT_INLINE float msub(float a, float s, float b) noexcept {  // a − s·b
+#if RAYKIT_FAST_FMA
+        return std::fma(-s, b, a);
+#else
+        return a - s * b;
+#endif
+    }
+    static RAYKIT_INLINE float tnum(float U, float Az, float V, float Bz, float W, float Cz) noexcept {
+#if RAYKIT_FAST_FMA
+        return std::fma(W, Cz, std::fma(U, Az, V * Bz));
+#else
+        return U * Az + V * Bz + W * Cz;
+#endif
+    }
+    static constexpr bool kFused =
+#if RAYKIT_FAST_FMA
+        true;
+#else
+        false;
+#endif
+
+    /// Zero area: every component of the edges' cross product, in double
+    /// from the float vertices, is zero (its two products compare equal):
+    /// collinear or repeated vertices. Checked
+    /// only on the way to reporting a hit, because the sheared 2-D edge
+    /// functions of a zero-area triangle are rounded independently and can
+    /// leave a nonzero determinant for a ray through its line.
+    static bool degenerate(const vec3& p0, const vec3& p1, const vec3& p2) noexcept {
+        const double e1x = double(p1.x) - double(p0.x), e1y = double(p1.y) - double(p0.y), e1z = double(p1.z) - double(p0.z);
+        const double e2x = double(p2.x) - double(p0.x), e2y = double(p2.y) - double(p0.y), e2z = double(p2.z) - double(p0.z);
+        return e1y * e2z == e1z * e2y && e1z * e2x == e1x * e2z && e1x * e2y == e1y * e2x;  // compared, not subtracted: nothing to fuse
+    }
+
     struct RayData {
         vec3 org;
         int kx, ky, kz;
@@ -58,9 +97,9 @@ struct Watertight {
         const float* a = &A.x;
         const float* b = &B.x;
         const float* c = &C.x;
-        const float Ax = a[d.kx] - d.sx * a[d.kz], Ay = a[d.ky] - d.sy * a[d.kz];
-        const float Bx = b[d.kx] - d.sx * b[d.kz], By = b[d.ky] - d.sy * b[d.kz];
-        const float Cx = c[d.kx] - d.sx * c[d.kz], Cy = c[d.ky] - d.sy * c[d.kz];
+        const float Ax = msub(a[d.kx], d.sx, a[d.kz]), Ay = msub(a[d.ky], d.sy, a[d.kz]);
+        const float Bx = msub(b[d.kx], d.sx, b[d.kz]), By = msub(b[d.ky], d.sy, b[d.kz]);
+        const float Cx = msub(c[d.kx], d.sx, c[d.kz]), Cy = msub(c[d.ky], d.sy, c[d.kz]);
         // Edge functions in double: a product of two floats is exact in double,
         // so each is rounded once, the same way in both triangles that share
         // the edge (watertight), even when the compiler fuses multiply-adds.
@@ -77,10 +116,11 @@ struct Watertight {
         const float det = static_cast<float>(detd);
         if (!(det != 0.0f)) return false;  // below float range: treat as degenerate
         const float Az = d.sz * a[d.kz], Bz = d.sz * b[d.kz], Cz = d.sz * c[d.kz];
-        const float T = U * Az + V * Bz + W * Cz;
+        const float T = tnum(U, Az, V, Bz, W, Cz);
         const float inv = 1.0f / det;
         const float t = T * inv;
         if (!(t >= tmin && t <= tmax)) return false;  // also rejects NaN
+        if (degenerate(p0, p1, p2)) return false;
         out = {t, V * inv, W * inv};
         return true;
     }
@@ -106,6 +146,7 @@ struct MollerTrumbore {
         if (!(v >= 0.0f && u + v <= 1.0f)) return false;
         const float t = glm::dot(e2, qv) * inv;
         if (!(t >= tmin && t <= tmax)) return false;
+        if (Watertight::degenerate(p0, p1, p2)) return false;  // det from the ray can round away from 0
         out = {t, u, v};
         return true;
     }

@@ -144,6 +144,19 @@ RK_INLINE float rk_edge_float(float a, float b, float c, float d) {
     return p - q;
 }
 
+/* raykit::Watertight::degenerate: the edges' cross product is exactly zero
+   (in double where the device has fp64, else in float). */
+RK_INLINE bool rk_degenerate(float3 p0, float3 p1, float3 p2) {
+#if RK_EDGE_DOUBLE
+    const double e1x = (double)p1.x - (double)p0.x, e1y = (double)p1.y - (double)p0.y, e1z = (double)p1.z - (double)p0.z;
+    const double e2x = (double)p2.x - (double)p0.x, e2y = (double)p2.y - (double)p0.y, e2z = (double)p2.z - (double)p0.z;
+    return e1y * e2z == e1z * e2y && e1z * e2x == e1x * e2z && e1x * e2y == e1y * e2x;  /* no subtraction: nothing to fuse */
+#else
+    const float3 n = cross(p1 - p0, p2 - p0);
+    return n.x == 0.0f && n.y == 0.0f && n.z == 0.0f;
+#endif
+}
+
 RK_INLINE bool rk_wt_intersect(const rk_wt_ray* d, float3 p0, float3 p1, float3 p2, float tmin, float tmax,
                      float* t_out, float* u_out, float* v_out) {
     const float A[3] = {p0.x - d->org[0], p0.y - d->org[1], p0.z - d->org[2]};
@@ -177,6 +190,7 @@ RK_INLINE bool rk_wt_intersect(const rk_wt_ray* d, float3 p0, float3 p1, float3 
     const float inv = 1.0f / det;
     const float t = T * inv;
     if (!(t >= tmin && t <= tmax)) return false;
+    if (rk_degenerate(p0, p1, p2)) return false;
     *t_out = t;
     *u_out = V * inv;
     *v_out = W * inv;
