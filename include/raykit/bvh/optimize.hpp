@@ -361,7 +361,7 @@ private:
         const std::uint32_t cnt = count_[k[0]] + count_[k[1]];
         count_[v] = cnt;
         const float split = lc_.traversal_cost * sa + cost_[k[0]] + cost_[k[1]];
-        const float leaf = lc_.intersection_cost * sa * float(cnt);
+        const float leaf = lc_.intersection_cost * sa * lc_.blocks(cnt);
         cost_[v] = cnt <= std::max(1u, lc_.max_leaf_size) && leaf <= split ? leaf : split;
     }
 
@@ -447,7 +447,7 @@ private:
             for (; i < np; ++i) b0 = std::min(b0, copt[P[i]] + copt[s ^ P[i]]);
             const float best = std::min(std::min(b0, b1), std::min(b2, b3));
             const float split = lc_.traversal_cost * sa[s] + best;
-            const float leaf_cost = lc_.intersection_cost * sa[s] * float(sc[s]);
+            const float leaf_cost = lc_.intersection_cost * sa[s] * lc_.blocks(sc[s]);
             copt[s] = sc[s] <= max_leaf && leaf_cost <= split ? leaf_cost : split;
         }
         // the split of s that reaches copt (the first in table order)

@@ -79,6 +79,7 @@ struct PairwiseBuilder {
         unsigned max_leaf_size = 8;      ///< leaf collapse: larger subtrees stay split (0 acts as 1)
         float traversal_cost = 1.0f;     ///< Ct for the leaf collapse
         float intersection_cost = 1.0f;  ///< Ci for the leaf collapse
+        unsigned leaf_block = 1;        ///< leaf collapse: primitives per SIMD test (LeafCollapseConfig)
         unsigned threads = 0;            ///< 0 = all hardware threads
     };
 
@@ -388,6 +389,7 @@ private:
         if (boxes.size() != centers.size())
             throw std::invalid_argument("PairwiseBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("PairwiseBuilder: too many primitives");
+        detail::check_leaf_block(cfg.leaf_block, "PairwiseBuilder");
         const unsigned threads = resolve_threads(cfg.threads);
         const bool area = cfg.metric == Config::Metric::area;
         const auto n = static_cast<std::uint32_t>(boxes.size());
@@ -432,7 +434,7 @@ private:
             std::swap(cur, next);
         }
         tree.root = n > 0 ? cur.node[0] : 0;
-        const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost};
+        const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost, cfg.leaf_block};
         return detail::finish_bottom_up(tree, boxes, sc.view, lc, threads);
     }
 };

@@ -66,6 +66,7 @@ struct PlocBuilder {
         unsigned max_leaf_size = 8;      ///< leaf collapse: larger subtrees stay split (0 acts as 1)
         float traversal_cost = 1.0f;     ///< Ct for the leaf collapse
         float intersection_cost = 1.0f;  ///< Ci for the leaf collapse
+        unsigned leaf_block = 1;        ///< leaf collapse: primitives per SIMD test (LeafCollapseConfig)
         unsigned threads = 0;            ///< 0 = all hardware threads
         OptimizeConfig optimize{};       ///< post-pass (bvh/optimize.hpp); OptimizeConfig::off() for plain PLOC
     };
@@ -77,6 +78,7 @@ struct PlocBuilder {
         if (boxes.size() != centers.size())
             throw std::invalid_argument("PlocBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("PlocBuilder: too many primitives");
+        detail::check_leaf_block(cfg.leaf_block, "PlocBuilder");
         if (cfg.radius < 1 || cfg.radius > 1024) throw std::invalid_argument("PlocBuilder: radius must be in [1, 1024]");
         const unsigned threads = resolve_threads(cfg.threads);
         const auto n = static_cast<std::uint32_t>(boxes.size());
@@ -196,7 +198,7 @@ struct PlocBuilder {
             std::swap(cur, next);
         }
         tree.root = n > 0 ? cur.node[0] : 0;  // merges keep the lower position: 0 survives
-        const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost};
+        const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost, cfg.leaf_block};
         detail::optimize_merge_tree(tree, boxes, sc.view, lc, cfg.optimize, team.size(), &team);
         return detail::finish_bottom_up(tree, boxes, sc.view, lc, team.size(), &team);
     }

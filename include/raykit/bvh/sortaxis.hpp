@@ -106,6 +106,7 @@ struct SortAxisBuilder {
         unsigned max_leaf_size = 8;         ///< leaf collapse: larger subtrees stay split (0 acts as 1)
         float traversal_cost = 1.0f;        ///< Ct for the leaf collapse
         float intersection_cost = 1.0f;     ///< Ci for the leaf collapse
+        unsigned leaf_block = 1;        ///< leaf collapse: primitives per SIMD test (LeafCollapseConfig)
         unsigned threads = 0;               ///< 0 = all hardware threads
         OptimizeConfig optimize = OptimizeConfig::off();  ///< post-pass (bvh/optimize.hpp)
     };
@@ -117,6 +118,7 @@ struct SortAxisBuilder {
         if (boxes.size() != centers.size())
             throw std::invalid_argument("SortAxisBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("SortAxisBuilder: too many primitives");
+        detail::check_leaf_block(cfg.leaf_block, "SortAxisBuilder");
         if (cfg.window < 1 || cfg.window > 4096)
             throw std::invalid_argument("SortAxisBuilder: window must be in [1, 4096]");
         const unsigned threads = resolve_threads(cfg.threads);
@@ -132,7 +134,7 @@ struct SortAxisBuilder {
         // the longest axis come from the primitives' centroid bounds.
         const KeyMaker key{cfg.axis == Config::Axis::morton, cfg.axis == Config::Axis::longest ? max_axis(sc.bounds.extent()) : 0,
                            detail::MortonQuantizer(sc.bounds)};
-        const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost};
+        const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost, cfg.leaf_block};
         // The collapse data of each new node are filled in while pairing;
         // they hold when every primitive box is real (finite, non-empty),
         // else finish_bottom_up recomputes them from the real boxes.
