@@ -1,13 +1,15 @@
 // benchmarks/bench_trace.cpp — single-ray closest-hit and any-hit throughput, raykit vs Embree 3.
 //
-// Cases: trace/<scene>/<rays>/<closest|any>/<raykit|wide|wide8|wide8copy|embree>/threads:<T>
+// Cases: trace/<scene>/<rays>/<closest|any>/<raykit|wide8|block8|embree>/threads:<T>
 //   scene   bunny, torus100k, torus1M            (common.hpp)
 //   rays    primary, random, 262 144 rays each   (common.hpp; any-hit uses the same rays, tmax = inf)
 //   T       1, 2 std::threads, static round-robin chunks of 256 rays (common.hpp trace_parallel)
 // raykit: BinnedSahBuilder with its default Config, intersect_closest / intersect_any
-// (watertight triangle test) on the binary Bvh; wide / wide8: the same tree collapsed
-// to a WideBvh / WideBvh8 (bvh/wide.hpp, 4 / 8 children per node), same leaves, same answers;
-// wide8copy: WideBvh8 with the opt-in LeafTriangles copy (36 B per triangle, no index chase). Embree: one default-config device, one scene per mesh with
+// (watertight triangle test) on the binary Bvh; wide8: the same tree collapsed to a
+// WideBvh8 (bvh/wide.hpp, 8 children per node), same leaves, same answers; block8:
+// BlockBvh8::build (scene/block_bvh.hpp): a binned-SAH tree built for 4-triangle blocks
+// (leaf_block 4, leaves up to 12), collapsed 8-wide, leaves tested 4 triangles at a time
+// (vertex copies, 160 B per block). Embree: one default-config device, one scene per mesh with
 // one RTC_GEOMETRY_TYPE_TRIANGLE geometry, RTC_BUILD_QUALITY_MEDIUM, rtcIntersect1 /
 // rtcOccluded1. Both write one result per ray into the same output arrays. items/s = rays/s.
 //
@@ -15,11 +17,13 @@
 // library's results); mismatch (computed once, untimed, for every case of a scene and ray
 // set): closest — rays whose hit/miss differs between raykit and Embree, or whose
 // primitive differs while |t_raykit − t_embree| > 1e-4·t_raykit; any — rays whose
-// occluded flag differs.
+// occluded flag differs. block_vs_binary: rays whose block8 hit (prim, t) or
+// occluded flag differs from the binary tree's in any bit (expected 0: same test, same tie rule).
 //
 //   build-bench/benchmarks/bench_trace --benchmark_out=bench_trace.json --benchmark_out_format=json
 #include <benchmark/benchmark.h>
 
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -36,7 +40,7 @@ using rkbench::Scene;
 
 constexpr double kMinTime = 0.5;  // seconds per case
 
-enum class Lib { raykit, wide, wide8, wide8copy, embree };
+enum class Lib { raykit, wide, wide8, wide8copy, block8, embree };
 
 struct Outputs {
     std::vector<float> t;
@@ -45,23 +49,44 @@ struct Outputs {
     explicit Outputs(std::size_t n) : t(n), prim(n), occluded(n) {}
 };
 
-template <class Tree, class Triangles>
-void trace_raykit(const Tree& bvh, const Triangles& mesh, const std::vector<raykit::Ray>& rays, bool any,
-                  unsigned threads, Outputs& out) {
+/// `query(ray, any)` returns a Hit (closest) or bool (any hit).
+template <class Query>
+void trace_raykit(Query&& query, const std::vector<raykit::Ray>& rays, bool any, unsigned threads, Outputs& out) {
     if (any) {
         rkbench::trace_parallel(rays.size(), threads, [&](std::size_t b, std::size_t e) {
-            for (std::size_t i = b; i < e; ++i) out.occluded[i] = raykit::intersect_any(mesh, bvh, rays[i]);
+            for (std::size_t i = b; i < e; ++i) out.occluded[i] = query.any(rays[i]);
         });
     } else {
         rkbench::trace_parallel(rays.size(), threads, [&](std::size_t b, std::size_t e) {
             for (std::size_t i = b; i < e; ++i) {
-                const raykit::Hit h = raykit::intersect_closest(mesh, bvh, rays[i]);
+                const raykit::Hit h = query.closest(rays[i]);
                 out.t[i] = h.t;
                 out.prim[i] = h.prim;
             }
         });
     }
 }
+
+/// A tree over a triangle source (indexed mesh or leaf copy).
+template <class Tree, class Triangles>
+struct TreeQuery {
+    const Tree& tree;
+    const Triangles& tris;
+    raykit::Hit closest(const raykit::Ray& r) const { return raykit::intersect_closest(tris, tree, r); }
+    bool any(const raykit::Ray& r) const { return raykit::intersect_any(tris, tree, r); }
+};
+template <class Tree, class Triangles>
+TreeQuery(const Tree&, const Triangles&) -> TreeQuery<Tree, Triangles>;
+
+/// A tree that carries its own triangles (BlockBvh).
+template <class Tree>
+struct SelfQuery {
+    const Tree& tree;
+    raykit::Hit closest(const raykit::Ray& r) const { return raykit::intersect_closest(tree, r); }
+    bool any(const raykit::Ray& r) const { return raykit::intersect_any(tree, r); }
+};
+template <class Tree>
+SelfQuery(const Tree&) -> SelfQuery<Tree>;
 
 #ifdef RAYKIT_HAVE_EMBREE
 struct EmbreeScene {
@@ -117,6 +142,7 @@ void trace_embree(RTCScene scene, const std::vector<raykit::Ray>& rays, bool any
 /// Agreement of raykit and Embree on one scene and ray set, computed once.
 struct Check {
     double mismatch_closest = -1, mismatch_any = -1;  // -1: Embree not built in
+    double block_vs_binary = 0;
     double hit_frac_raykit = 0, hit_frac_embree = 0, occluded_frac_raykit = 0, occluded_frac_embree = 0;
 };
 
@@ -130,14 +156,25 @@ const Check& check(const Scene& s, const std::string& set) {
     const auto& rays = rkbench::rays(s, set);
     const std::size_t n = rays.size();
     Outputs rk(n);
-    trace_raykit(rkbench::raykit_bvh(s), raykit::MeshView(s.mesh), rays, false, 0, rk);
-    trace_raykit(rkbench::raykit_bvh(s), raykit::MeshView(s.mesh), rays, true, 0, rk);
+    const raykit::MeshView mv(s.mesh);
+    trace_raykit(TreeQuery{rkbench::raykit_bvh(s), mv}, rays, false, 0, rk);
+    trace_raykit(TreeQuery{rkbench::raykit_bvh(s), mv}, rays, true, 0, rk);
     std::size_t hits = 0, occ = 0;
     for (std::size_t i = 0; i < n; ++i) {
         hits += rk.prim[i] != raykit::kInvalidIndex;
         occ += rk.occluded[i];
     }
     c.hit_frac_raykit = double(hits) / double(n);
+    {
+        Outputs bk(n);
+        trace_raykit(SelfQuery{rkbench::raykit_block8_bvh(s)}, rays, false, 0, bk);
+        trace_raykit(SelfQuery{rkbench::raykit_block8_bvh(s)}, rays, true, 0, bk);
+        std::size_t d = 0;
+        for (std::size_t i = 0; i < n; ++i)
+            d += bk.prim[i] != rk.prim[i] || std::bit_cast<std::uint32_t>(bk.t[i]) != std::bit_cast<std::uint32_t>(rk.t[i]) ||
+                 bk.occluded[i] != rk.occluded[i];
+        c.block_vs_binary = double(d);
+    }
     c.occluded_frac_raykit = double(occ) / double(n);
 #ifdef RAYKIT_HAVE_EMBREE
     const EmbreeScene& es = embree_scene(s);
@@ -171,22 +208,24 @@ void BM_trace(benchmark::State& state, std::string scene_name, std::string set, 
     const Check& c = check(*s, set);
     Outputs out(rays.size());
     // every raykit configuration: the same loop over (tree, triangle source)
-    const auto time_raykit = [&](const auto& tree, const auto& tris) {
+    const auto time_raykit = [&](const auto& query) {
         for (auto _ : state) {
-            trace_raykit(tree, tris, rays, any, threads, out);
+            trace_raykit(query, rays, any, threads, out);
             benchmark::ClobberMemory();
         }
         state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
     };
     const raykit::MeshView mesh(s->mesh);
     if (lib == Lib::raykit) {
-        time_raykit(rkbench::raykit_bvh(*s), mesh);
+        time_raykit(TreeQuery{rkbench::raykit_bvh(*s), mesh});
     } else if (lib == Lib::wide) {
-        time_raykit(rkbench::raykit_wide_bvh(*s), mesh);
+        time_raykit(TreeQuery{rkbench::raykit_wide_bvh(*s), mesh});
     } else if (lib == Lib::wide8) {
-        time_raykit(rkbench::raykit_wide8_bvh(*s), mesh);
+        time_raykit(TreeQuery{rkbench::raykit_wide8_bvh(*s), mesh});
     } else if (lib == Lib::wide8copy) {
-        time_raykit(rkbench::raykit_wide8_bvh(*s), rkbench::raykit_wide8_leaf_triangles(*s));
+        time_raykit(TreeQuery{rkbench::raykit_wide8_bvh(*s), rkbench::raykit_wide8_leaf_triangles(*s)});
+    } else if (lib == Lib::block8) {
+        time_raykit(SelfQuery{rkbench::raykit_block8_bvh(*s)});
     } else {
 #ifdef RAYKIT_HAVE_EMBREE
         const EmbreeScene& es = embree_scene(*s);
@@ -209,10 +248,11 @@ void BM_trace(benchmark::State& state, std::string scene_name, std::string set, 
     state.counters["Mrays/s"] = benchmark::Counter(per_iter * 1e-6, benchmark::Counter::kIsIterationInvariantRate);
     const double mm = any ? c.mismatch_any : c.mismatch_closest;
     if (mm >= 0) state.counters["mismatch"] = mm;
+    if (lib == Lib::block8) state.counters["block_vs_binary"] = c.block_vs_binary;
 }
 
 const bool registered = [] {
-    std::vector<Lib> libs{Lib::raykit, Lib::wide, Lib::wide8, Lib::wide8copy};
+    std::vector<Lib> libs{Lib::raykit, Lib::wide8, Lib::block8};
 #ifdef RAYKIT_HAVE_EMBREE
     libs.push_back(Lib::embree);
 #endif
@@ -226,6 +266,7 @@ const bool registered = [] {
                                                   : lib == Lib::wide      ? "wide"
                                                   : lib == Lib::wide8     ? "wide8"
                                                   : lib == Lib::wide8copy ? "wide8copy"
+                                                  : lib == Lib::block8    ? "block8"
                                                                           : "embree") +
                                                  "/threads:" + std::to_string(threads);
                         benchmark::RegisterBenchmark(name.c_str(), BM_trace, sc, set, any, lib, threads)

@@ -227,6 +227,16 @@ inline const raykit::LeafTriangles& raykit_wide8_leaf_triangles(const Scene& s) 
     return *slot;
 }
 
+/// BlockBvh8 over s: a binned-SAH tree built for 4-triangle blocks
+/// (BlockBvh8::sah_config()), collapsed 8-wide, made once.
+inline const raykit::BlockBvh8& raykit_block8_bvh(const Scene& s) {
+    static std::map<std::string, std::unique_ptr<raykit::BlockBvh8>> cache;
+    std::lock_guard lock(detail::cache_mutex());
+    auto& slot = cache[s.name];
+    if (!slot) slot = std::make_unique<raykit::BlockBvh8>(raykit::BlockBvh8::build(raykit::MeshView(s.mesh)));
+    return *slot;
+}
+
 /// fn(begin, end) over [0, n) in chunks of kChunkRays dealt round-robin to `threads` threads.
 template <class Fn>
 void trace_parallel(std::size_t n, unsigned threads, Fn&& fn) {

@@ -7,7 +7,7 @@
 
 Case names (suffixes Google Benchmark appends, such as /min_time:0.500 or /real_time,
 are ignored):
-    trace/<scene>/<rays>/<query>/<raykit|wide|wide8|wide8copy|embree>/threads:<T>
+    trace/<scene>/<rays>/<query>/<raykit|wide8|block8|embree>/threads:<T>
     build/<scene>/raykit/threads:<T>
     build/<scene>/embree_scene/quality:<q>/threads:<T>
     sahcmp/<scene>/leaf:<L>/<raykit|embree_builder>
@@ -97,22 +97,22 @@ def trace_section(runs):
     for key in order:
         c = cases[key]
         rk, em = mrays(c["raykit"]) if "raykit" in c else None, mrays(c["embree"]) if "embree" in c else None
-        wd = mrays(c["wide"]) if "wide" in c else None
         w8 = mrays(c["wide8"]) if "wide8" in c else None
-        wc = mrays(c["wide8copy"]) if "wide8copy" in c else None
+        b8 = mrays(c["block8"]) if "block8" in c else None
         mm = None
         for lib in ("raykit", "embree"):
             if lib in c and "mismatch" in c[lib]:
                 mm = int(c[lib]["mismatch"])
+        bd = int(c["block8"]["block_vs_binary"]) if "block8" in c and "block_vs_binary" in c["block8"] else None
         hit = c.get("raykit", c.get("embree", {})).get("hit_frac")
-        rows.append(list(key) + [rk, wd, w8, wc, em, ratio(rk, em), ratio(wd, em), ratio(w8, em), ratio(wc, em),
+        rows.append(list(key) + [rk, w8, b8, em, ratio(rk, em), ratio(w8, em), ratio(b8, em),
                                  fmt(hit, 3) if hit is not None else "–",
-                                 str(mm) if mm is not None else "–"])
-    return ("### Tracing (Mrays/s, higher is better; raykit = binary Bvh, wide / wide8 = the same tree as a "
-            "WideBvh / WideBvh8)\n\n" +
-            table(["scene", "rays", "query", "threads", "raykit", "wide", "wide8", "wide8+copy", "Embree",
-                   "raykit/Embree", "wide/Embree", "wide8/Embree", "wide8+copy/Embree",
-                   "hit frac", "mismatch"], rows))
+                                 str(mm) if mm is not None else "–", str(bd) if bd is not None else "–"])
+    return ("### Tracing (Mrays/s, higher is better; raykit = binary Bvh, wide8 = the same tree as a "
+            "WideBvh8, block8 = BlockBvh8::build: a tree built for 4-triangle blocks, 8-wide)\n\n" +
+            table(["scene", "rays", "query", "threads", "raykit", "wide8", "block8", "Embree",
+                   "raykit/Embree", "wide8/Embree", "block8/Embree",
+                   "hit frac", "mismatch vs Embree", "block8 vs binary"], rows))
 
 
 def build_section(runs):

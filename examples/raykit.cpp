@@ -47,7 +47,7 @@ struct UsageError : std::runtime_error {
 
 constexpr const char* kUsage = R"(usage:
   raykit info SCENE.obj [--builder NAME] [--window W] [--axis A] [--metric M] [--pairing P] [--radius R] [--optimize on|off]
-                        [--leaf N] [--threads T] [--json]
+                        [--leaf N] [--leaf-block B] [--threads T] [--json]
   raykit info --device         lists OpenCL platforms and devices, and which one raykit picks and why
   raykit animate-test SCENE.obj [--frames N]   a "wave" vertex hook moves a dynamic copy each frame: refit, TLAS, trace, device and CPU
   raykit trace SCENE.obj RAYS.txt HITS.txt [--builder NAME] [--any-hit] [--test watertight|mt|thesis] [--threads T] [--device cpu|cl]
@@ -61,6 +61,8 @@ constexpr const char* kUsage = R"(usage:
 
   --builder NAME   BVH builder: sah (binned SAH, default), pairwise, sortaxis, ploc
   --leaf N         largest leaf (primitives), default 8
+  --leaf-block B   SAH counts leaves in blocks of B primitives (1 default; 4 with --leaf 12 suits
+                   the CPU trace, which tests leaves 4 triangles at a time)
   --window W       sortaxis: candidates per element, default 2 (the thesis used 6)
   --axis A         sortaxis: x | longest | morton (default)
   --metric M       pairwise: centre (default) | area; sortaxis: area (default) | centre
@@ -118,8 +120,8 @@ struct Args {
 };
 
 /// Options every command that builds a tree takes.
-const std::vector<std::string> kTreeFlags = {"--builder", "--leaf",   "--threads", "--window",
-                                             "--axis",    "--metric", "--pairing", "--radius", "--optimize"};
+const std::vector<std::string> kTreeFlags = {"--builder", "--leaf",    "--leaf-block", "--threads", "--window",
+                                             "--axis",    "--metric",  "--pairing",    "--radius",  "--optimize"};
 
 std::vector<std::string> with_tree_flags(std::vector<std::string> v) {
     v.insert(v.end(), kTreeFlags.begin(), kTreeFlags.end());
@@ -143,6 +145,9 @@ BuildOptions tree_options(const Args& a) {
         throw UsageError(e.what());
     }
     o.max_leaf_size = a.number<unsigned>("--leaf", 8);
+    o.leaf_block = a.number<unsigned>("--leaf-block", 1);
+    if (o.leaf_block < 1 || o.leaf_block > 16 || (o.leaf_block & (o.leaf_block - 1)))
+        throw UsageError("--leaf-block must be 1, 2, 4, 8 or 16");
     o.threads = a.number<unsigned>("--threads", 0);
     o.window = a.number<unsigned>("--window", o.window);
     o.radius = a.number<unsigned>("--radius", o.radius);
@@ -190,10 +195,10 @@ int cmd_info(int argc, char** argv) {
     if (a.has("--json")) {
         std::printf(
             "{\"file\": \"%s\", \"triangles\": %zu, \"vertices\": %zu, \"materials\": %zu, \"builder\": \"%s\", "
-            "\"settings\": \"%s\", \"max_leaf_size\": %u, \"nodes\": %zu, \"leaves\": %zu, \"depth\": %d, "
+            "\"settings\": \"%s\", \"max_leaf_size\": %u, \"leaf_block\": %u, \"nodes\": %zu, \"leaves\": %zu, \"depth\": %d, "
             "\"sah_cost\": %.6f, \"build_ms\": %.3f, \"memory_bytes\": %zu}\n",
             a.pos[0].c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(),
-            BuildOptions::name(t.builder), describe(t).c_str(), t.max_leaf_size, bvh.nodes.size(), bvh.leaf_count(),
+            BuildOptions::name(t.builder), describe(t).c_str(), t.max_leaf_size, t.leaf_block, bvh.nodes.size(), bvh.leaf_count(),
             bvh.depth(), cost, ms, bvh.memory_bytes());
     } else {
         std::printf("file        %s\ntriangles   %zu\nvertices    %zu\nmaterials   %zu\nbuilder     %s (max leaf %u)\n"
@@ -293,16 +298,25 @@ int cmd_trace(int argc, char** argv) {
         throw std::runtime_error("this raykit was built without OpenCL (install ocl-icd-opencl-dev, opencl-clhpp-headers and pocl-opencl-icd, then rebuild)");
 #endif
     } else {
-        // the CPU traces the same tree collapsed to 8-wide nodes: same answers, faster
+        // the CPU traces the same tree collapsed to 8-wide nodes: same answers, faster;
+        // with the watertight test, through 4-triangle blocks (scene/block_bvh.hpp)
         const WideBvh8 wide = WideBvh8::collapse(bvh);
-        with_test(tk, [&](auto test) {
-            using T = decltype(test);
+        if (tk == TestKind::watertight) {
+            const BlockBvh8 blocks = BlockBvh8::make(mesh, wide, t.threads);
             parallel_for(rays.size(), t.threads, [&](std::size_t i) {
-                if (any) occl[i] = intersect_any<T>(mesh, wide, rays[i]);
-                else hits[i] = intersect_closest<T>(mesh, wide, rays[i]);
+                if (any) occl[i] = intersect_any(blocks, rays[i]);
+                else hits[i] = intersect_closest(blocks, rays[i]);
             });
-            return 0;
-        });
+        } else {
+            with_test(tk, [&](auto test) {
+                using T = decltype(test);
+                parallel_for(rays.size(), t.threads, [&](std::size_t i) {
+                    if (any) occl[i] = intersect_any<T>(mesh, wide, rays[i]);
+                    else hits[i] = intersect_closest<T>(mesh, wide, rays[i]);
+                });
+                return 0;
+            });
+        }
     }
     std::string buf;
     buf.reserve(rays.size() * 40);
@@ -354,9 +368,11 @@ int cmd_check(int argc, char** argv) {
         }
         if (r.dir == vec3(0.0f)) r.dir = vec3(0.0f, 0.0f, 1.0f);
     }
-    // both trees the CPU traces: the binary one and its 8-wide collapse (what `trace` uses)
+    // every tree the CPU traces: the binary one, its 8-wide collapse and, for the
+    // watertight test, the 4-triangle blocks made from that (what `trace` uses)
     const WideBvh8 wide = WideBvh8::collapse(bvh);
     if (std::string err = wide.validate(refs.boxes); !err.empty()) throw std::runtime_error("invalid wide BVH: " + err);
+    const BlockBvh8 blocks = tk == TestKind::watertight ? BlockBvh8::make(mesh, wide, t.threads) : BlockBvh8{};
     std::vector<std::uint8_t> bad(n);
     with_test(tk, [&](auto test) {
         using T = decltype(test);
@@ -368,6 +384,11 @@ int cmd_check(int argc, char** argv) {
             const bool wany = intersect_any<T>(mesh, wide, rays[i]);
             bad[i] = h.prim != o.prim || h.t != o.t || any != o.valid() || w.prim != o.prim || w.t != o.t ||
                      wany != o.valid();
+            if constexpr (std::is_same_v<T, Watertight>) {
+                const Hit bh = intersect_closest(blocks, rays[i]);
+                bad[i] |= bh.prim != o.prim || bh.t != o.t || bh.u != o.u || bh.v != o.v ||
+                          intersect_any(blocks, rays[i]) != o.valid();
+            }
         });
         return 0;
     });

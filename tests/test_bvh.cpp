@@ -5,6 +5,7 @@
 #include <cstring>
 #include <filesystem>
 #include <random>
+#include <type_traits>
 
 #include "raykit.hpp"
 #include "test_support.hpp"
@@ -30,6 +31,15 @@ std::size_t expect_matches_brute_force(const Mesh& m, const Bvh& bvh, const std:
         EXPECT_EQ(wide.validate(primitive_refs(m).boxes), "");
         EXPECT_EQ(wide8.validate(primitive_refs(m).boxes), "");
     }
+    // with the watertight test, also the 4-triangle blocks over the binary,
+    // 4- and 8-wide trees (scene/block_bvh.hpp): bit-identical answers
+    constexpr bool kBlocks = std::is_same_v<Test, Watertight>;
+    const BlockBvh2 blk2 = kBlocks ? BlockBvh2::make(m, bvh) : BlockBvh2{};
+    const BlockBvh blk4 = kBlocks ? BlockBvh::make(m, wide) : BlockBvh{};
+    const BlockBvh8 blk8 = kBlocks ? BlockBvh8::make(m, wide8) : BlockBvh8{};
+    const auto same = [](const Hit& a, const Hit& b) {
+        return a.prim == b.prim && a.t == b.t && a.u == b.u && a.v == b.v;
+    };
     for (std::size_t i = 0; i < rays.size(); ++i) {
         const Hit h = intersect_closest<Test>(m, bvh, rays[i]);
         const Hit o = brute_force_closest<Test>(m, rays[i]);
@@ -38,14 +48,19 @@ std::size_t expect_matches_brute_force(const Mesh& m, const Bvh& bvh, const std:
         const bool wany = intersect_any<Test>(m, wide, rays[i]);
         const Hit w8 = intersect_closest<Test>(m, wide8, rays[i]);
         const bool w8any = intersect_any<Test>(m, wide8, rays[i]);
+        bool blocks_ok = true;
+        if constexpr (kBlocks)
+            blocks_ok = same(intersect_closest(blk2, rays[i]), h) && same(intersect_closest(blk4, rays[i]), h) &&
+                        same(intersect_closest(blk8, rays[i]), h) && intersect_any(blk2, rays[i]) == any &&
+                        intersect_any(blk4, rays[i]) == any && intersect_any(blk8, rays[i]) == any;
         if (h.prim != o.prim || h.t != o.t || any != o.valid() || w.prim != o.prim || w.t != o.t || w.u != h.u ||
             w.v != h.v || wany != any || w8.prim != o.prim || w8.t != o.t || w8.u != h.u || w8.v != h.v ||
-            w8any != any) {
+            w8any != any || !blocks_ok) {
             if (++bad <= 5 && assert_all)
                 ADD_FAILURE() << "ray " << i << " org (" << rays[i].org.x << ", " << rays[i].org.y << ", "
                               << rays[i].org.z << ") dir (" << rays[i].dir.x << ", " << rays[i].dir.y << ", "
                               << rays[i].dir.z << "): bvh prim " << h.prim << " t " << h.t << " any " << any
-                              << ", brute force prim " << o.prim << " t " << o.t;
+                              << ", brute force prim " << o.prim << " t " << o.t << ", blocks agree " << blocks_ok;
         }
     }
     if (assert_all) {
@@ -136,10 +151,11 @@ TEST(Bvh, ExactVertexAndEdgeRaysNeverMissAClosedMesh) {
             Mesh m = make_icosphere(4);
             transform_positions(m, scale, vec3(offset, -offset, offset));
             const Bvh bvh = build(m);
+            const BlockBvh8 blk = BlockBvh8::make(m, bvh);
             std::mt19937_64 rng(42);
             std::uniform_real_distribution<float> U(-1.0f, 1.0f);
             const vec3 center(offset, -offset, offset);
-            std::size_t miss_wt = 0, miss_mt = 0, miss_th = 0, n = 0;
+            std::size_t miss_wt = 0, miss_blk = 0, miss_mt = 0, miss_th = 0, n = 0;
             for (const Triangle& t : m.triangles) {
                 const vec3 a = m.positions[t.v[0]], b = m.positions[t.v[1]];
                 for (const vec3& target : {a, (a + b) * 0.5f, a + (b - a) * 0.25f}) {
@@ -148,11 +164,13 @@ TEST(Bvh, ExactVertexAndEdgeRaysNeverMissAClosedMesh) {
                     const Ray r{o, 0.0f, target - o, kInf};
                     ++n;
                     miss_wt += !intersect_closest<Watertight>(m, bvh, r).valid();
+                    miss_blk += !intersect_closest(blk, r).valid();
                     miss_mt += !intersect_closest<MollerTrumbore>(m, bvh, r).valid();
                     miss_th += !intersect_closest<ThesisTest>(m, bvh, r).valid();
                 }
             }
             EXPECT_EQ(miss_wt, 0u) << "scale " << scale << " offset " << offset;
+            EXPECT_EQ(miss_blk, 0u) << "4-triangle blocks, scale " << scale << " offset " << offset;
             std::printf("[ info ] vertex/edge rays, scale %g offset %g: misses of %zu: watertight %zu, "
                         "moller-trumbore %zu, thesis %zu\n",
                         scale, offset, n, miss_wt, miss_mt, miss_th);
