@@ -75,6 +75,7 @@ TEST(Cli, UsageErrorsExitWithTwo) {
     expect_clean_error(run("info a.obj --leaf"), 2, "--leaf needs a value");
     expect_clean_error(run("info a.obj --leaf x"), 2, "--leaf expects a number");
     expect_clean_error(run("info a.obj --builder magic"), 2, "unknown builder");
+    expect_clean_error(run("info a.obj --leaf-block 3"), 2, "--leaf-block must be 1, 2, 4, 8 or 16");
     expect_clean_error(run("info a.obj --builder sortaxis --pairing best"), 2, "unknown pairing");
     expect_clean_error(run("info a.obj --builder ploc --optimize maybe"), 2, "--optimize takes on or off");
     expect_clean_error(run("trace a.obj r.txt"), 2, "trace takes");
@@ -153,6 +154,11 @@ TEST(Cli, TraceMatchesBruteForce) {
     }
     EXPECT_EQ(bad, 0u);
     EXPECT_GT(hitcount, 500u);
+    // a tree built for 4-triangle blocks (another tree, same test): the same HITS, byte for byte
+    const fs::path hits_blk = tmpdir() / "hits2_blk.txt";
+    r = run("trace " + scene.string() + " " + rays.string() + " " + hits_blk.string() + " --leaf-block 4 --leaf 12");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(slurp(hits_blk), slurp(hits));
 }
 
 TEST(Cli, InfoJsonAndCheck) {
@@ -165,6 +171,11 @@ TEST(Cli, InfoJsonAndCheck) {
     r = run("check " + scene.string() + " --rays 500 --seed 3");
     EXPECT_EQ(r.code, 0) << r.out << r.err;
     EXPECT_NE(r.out.find("0 disagreements"), std::string::npos) << r.out;
+    r = run("info " + scene.string() + " --json --leaf-block 4 --leaf 12");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("\"leaf_block\": 4"), std::string::npos) << r.out;
+    r = run("check " + scene.string() + " --rays 500 --seed 4 --leaf-block 4 --leaf 12 --builder ploc");
+    EXPECT_EQ(r.code, 0) << r.out << r.err;
     // flags left out take the builder's own defaults (sortaxis: area, mutual, W 2; ploc: post-pass on)
     const auto sah_of = [&](const std::string& flags) {
         const Result x = run("info " + scene.string() + " --json " + flags);
