@@ -119,6 +119,34 @@ TYPED_TEST(TriangleTests, DegenerateAndNanTrianglesNeverHit) {
                                       {1, 0, 0}, {0, 1, 0}, 0.0f, kInf, h));
 }
 
+TYPED_TEST(TriangleTests, CollinearTrianglesNeverHitFromAnyDirection) {
+    // Rays through points of a zero-area triangle's line, from random directions, near
+    // and far from the origin: rounding in a test's ray-dependent determinant must not
+    // turn the line into a hit (the watertight test did before it checked the edges'
+    // cross product).
+    std::mt19937_64 rng(17);
+    std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+    std::size_t hits = 0, n = 0;
+    for (float offset : {0.0f, 1e3f}) {
+        for (int k = 0; k < 20000; ++k) {
+            const vec3 base = vec3(offset, -offset, 0.5f * offset) + vec3(U(rng), U(rng), U(rng));
+            const vec3 step = vec3(U(rng), U(rng), U(rng));
+            // exactly collinear in float: p0, p0 + s, p0 + 2s with s a power-of-two multiple
+            // of an exactly representable step
+            const vec3 s = k % 2 ? vec3(0.5f, 0.25f, 0.0f) : vec3(0.25f, 0.5f, 1.0f);
+            const vec3 p0 = base, p1 = base + s, p2 = base + 2.0f * s;
+            if (!(Watertight::degenerate(p0, p1, p2))) continue;  // rounding made them non-collinear
+            const vec3 target = p0 + s * (0.5f * (U(rng) + 1.0f));
+            const vec3 o = target + step * 3.0f;
+            TriHit h;
+            hits += TypeParam::intersect(TypeParam::prepare(make_ray(o, target - o)), p0, p1, p2, 0.0f, kInf, h);
+            ++n;
+        }
+    }
+    EXPECT_GT(n, 20000u);
+    EXPECT_EQ(hits, 0u) << "of " << n << " rays through collinear triangles";
+}
+
 TEST(Watertight, SharedEdgeAndVertexOfAQuadAreNeverMissed) {
     // Two triangles sharing the diagonal of a quad; rays at points exactly on it.
     const vec3 a(0, 0, 0), b(1, 0, 0), c(1, 1, 0), d(0, 1, 0);
