@@ -45,20 +45,18 @@ const char* name(Kind k) {
     }
 }
 
-/// fn(query) with query(ray) -> Hit for kind k; the trees are looked up once.
+/// fn(query) with query(ray) -> Hit for kind k over a mesh, its WideBvh8 (scalar tests) and
+/// a BlockBvh8 (blocks).
 template <class Fn>
-decltype(auto) with_query(Kind k, const Scene& s, Fn&& fn) {
-    const raykit::MeshView mv(s.mesh);
-    const raykit::WideBvh8& w = rkbench::raykit_wide8_bvh(s);
+decltype(auto) with_query(Kind k, const raykit::MeshView& mv, const raykit::WideBvh8& w, const raykit::BlockBvh8& b,
+                          Fn&& fn) {
     switch (k) {
         case Kind::mt:
             return fn([&](const raykit::Ray& r) { return raykit::intersect_closest<raykit::MollerTrumbore>(mv, w, r); });
         case Kind::thesis:
             return fn([&](const raykit::Ray& r) { return raykit::intersect_closest<raykit::ThesisTest>(mv, w, r); });
-        case Kind::blocks: {
-            const raykit::BlockBvh8& b = rkbench::raykit_block8_bvh(s);
+        case Kind::blocks:
             return fn([&](const raykit::Ray& r) { return raykit::intersect_closest(b, r); });
-        }
         default:
             return fn([&](const raykit::Ray& r) { return raykit::intersect_closest<raykit::Watertight>(mv, w, r); });
     }
@@ -70,7 +68,8 @@ decltype(auto) with_query(Kind k, const Scene& s, Fn&& fn) {
 /// ray crosses it well inside its border, so each ray must hit: a miss is a crack.
 struct EdgeCase {
     raykit::Mesh mesh;
-    raykit::Bvh bvh;
+    raykit::WideBvh8 wide;
+    raykit::BlockBvh8 blocks;
     std::vector<raykit::Ray> rays;
 };
 
@@ -96,7 +95,9 @@ const EdgeCase& edge_case() {
                 e.mesh.triangles.push_back({{at(i, j), at(i + 1, j), at(i + 1, j + 1)}});
                 e.mesh.triangles.push_back({{at(i, j), at(i + 1, j + 1), at(i, j + 1)}});
             }
-        e.bvh = raykit::build_bvh<raykit::BinnedSahBuilder>(e.mesh, raykit::BinnedSahBuilder::Config{});
+        e.wide = raykit::WideBvh8::collapse(
+            raykit::build_bvh<raykit::BinnedSahBuilder>(e.mesh, raykit::BinnedSahBuilder::Config{}));
+        e.blocks = raykit::BlockBvh8::build(e.mesh);
         std::uniform_int_distribution<int> inner(5, n - 5);
         for (int k = 0; k < 100000; ++k) {
             const int i = inner(rng), j = inner(rng);
@@ -115,20 +116,11 @@ const EdgeCase& edge_case() {
 /// Misses of test `k` on edge_case()'s rays (each must hit).
 std::size_t edge_misses(Kind k) {
     const EdgeCase& e = edge_case();
-    const raykit::MeshView mv(e.mesh);
-    std::size_t miss = 0;
-    if (k == Kind::blocks) {
-        const raykit::BlockBvh8 b = raykit::BlockBvh8::build(mv);
-        for (const raykit::Ray& r : e.rays) miss += !raykit::intersect_closest(b, r).valid();
+    return with_query(k, e.mesh, e.wide, e.blocks, [&](auto query) {
+        std::size_t miss = 0;
+        for (const raykit::Ray& r : e.rays) miss += !query(r).valid();
         return miss;
-    }
-    const raykit::WideBvh8 w = raykit::WideBvh8::collapse(e.bvh);
-    for (const raykit::Ray& r : e.rays)
-        miss += !(k == Kind::mt       ? raykit::intersect_closest<raykit::MollerTrumbore>(mv, w, r)
-                  : k == Kind::thesis ? raykit::intersect_closest<raykit::ThesisTest>(mv, w, r)
-                                      : raykit::intersect_closest<raykit::Watertight>(mv, w, r))
-                     .valid();
-    return miss;
+    });
 }
 
 struct Accuracy {
@@ -147,7 +139,7 @@ const Accuracy& accuracy(const Scene& s, Kind k) {
     const auto& rays = rkbench::rays(s, "random");
     const raykit::MeshView mv(s.mesh);
     const raykit::Bvh& bvh = rkbench::raykit_bvh(s);
-    with_query(k, s, [&](auto query) {
+    with_query(k, mv, rkbench::raykit_wide8_bvh(s), rkbench::raykit_block8_bvh(s), [&](auto query) {
         for (std::size_t i = 0; i < rays.size(); i += 16) {  // every 16th: 16,384 rays
             const raykit::Hit o = raykit::intersect_closest(mv, bvh, rays[i]);  // == brute force (test_bvh)
             const raykit::Hit h = query(rays[i]);
@@ -165,7 +157,7 @@ void BM_test(benchmark::State& state, std::string scene_name, Kind k) {
     const auto& rays = rkbench::rays(*s, "random");
     const Accuracy& a = accuracy(*s, k);
     std::vector<float> out(rays.size());
-    with_query(k, *s, [&](auto query) {
+    with_query(k, s->mesh, rkbench::raykit_wide8_bvh(*s), rkbench::raykit_block8_bvh(*s), [&](auto query) {
         for (auto _ : state) {
             for (std::size_t i = 0; i < rays.size(); ++i) out[i] = query(rays[i]).t;
             benchmark::ClobberMemory();

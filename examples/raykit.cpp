@@ -146,8 +146,7 @@ BuildOptions tree_options(const Args& a) {
     }
     o.max_leaf_size = a.number<unsigned>("--leaf", 8);
     o.leaf_block = a.number<unsigned>("--leaf-block", 1);
-    if (o.leaf_block < 1 || o.leaf_block > 16 || (o.leaf_block & (o.leaf_block - 1)))
-        throw UsageError("--leaf-block must be 1, 2, 4, 8 or 16");
+    if (!valid_leaf_block(o.leaf_block)) throw UsageError("--leaf-block must be 1, 2, 4, 8 or 16");
     o.threads = a.number<unsigned>("--threads", 0);
     o.window = a.number<unsigned>("--window", o.window);
     o.radius = a.number<unsigned>("--radius", o.radius);

@@ -439,6 +439,20 @@ TEST(Builders, GeometricProgressionStaysWithinTheDepthBound) {
         }
 }
 
+/// A caterpillar merge tree over n primitives: each merge joins one primitive
+/// with everything merged so far (on the left or on the right), one batch each.
+static detail::MergeTree caterpillar(std::uint32_t n, bool left_deep) {
+    detail::MergeTree t;
+    t.prims = n;
+    std::uint32_t cur = 0;
+    for (std::uint32_t i = 1; i < n; ++i) {
+        cur = left_deep ? t.add(cur, i) : t.add(i, cur);
+        t.close_batch();
+    }
+    t.root = cur;
+    return t;
+}
+
 /// The depth pass on its own: a caterpillar merge tree (each node one
 /// primitive plus the rest) of 5000 levels is cut to the bound.
 TEST(Builders, DepthPassCutsADegenerateMergeTree) {
@@ -446,14 +460,7 @@ TEST(Builders, DepthPassCutsADegenerateMergeTree) {
         const TestScene s("caterpillar", make_random_soup(n, n, 0.05f), 200, n);
         const PrimitiveRefs& r = s.refs;
         for (bool left_deep : {false, true}) {
-            detail::MergeTree t;
-            t.prims = n;
-            std::uint32_t cur = 0;
-            for (std::uint32_t i = 1; i < n; ++i) {
-                cur = left_deep ? t.add(cur, i) : t.add(i, cur);
-                t.close_batch();
-            }
-            t.root = cur;
+            const detail::MergeTree t = caterpillar(n, left_deep);
             for (unsigned leaf : {1u, 8u}) {
                 detail::MergeTree copy = t;
                 const Bvh bvh = detail::finish_bottom_up(copy, r.boxes, r.centers, {leaf, 1.0f, 1.0f}, 2);
@@ -619,14 +626,7 @@ TEST(Builders, OptimizePassAfterADepthCut) {
         const TestScene s("caterpillar", make_random_soup(n, n + 7, 0.05f), 200, n);
         const PrimitiveRefs& r = s.refs;
         for (bool left_deep : {false, true}) {
-            detail::MergeTree t;
-            t.prims = n;
-            std::uint32_t cur = 0;
-            for (std::uint32_t i = 1; i < n; ++i) {
-                cur = left_deep ? t.add(cur, i) : t.add(i, cur);
-                t.close_batch();
-            }
-            t.root = cur;
+            const detail::MergeTree t = caterpillar(n, left_deep);
             for (unsigned leaf : {1u, 8u})
                 for (const OptimizeConfig& oc : {OptimizeConfig{}, OptimizeConfig{0.25f, 3u, 1u}}) {
                     detail::MergeTree copy = t;

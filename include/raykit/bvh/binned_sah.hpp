@@ -24,7 +24,6 @@
 
 #include <algorithm>
 #include <array>
-#include <bit>
 #include <cstdint>
 #include <span>
 #include <stdexcept>
@@ -32,6 +31,7 @@
 
 #include "raykit/bvh/depth.hpp"
 #include "raykit/bvh/node.hpp"
+#include "raykit/bvh/sah.hpp"
 #include "raykit/util/parallel.hpp"
 
 namespace raykit {
@@ -60,8 +60,7 @@ struct BinnedSahBuilder {
             throw std::invalid_argument("BinnedSahBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("BinnedSahBuilder: too many primitives");
         if (cfg.bins < 2 || cfg.bins > 256) throw std::invalid_argument("BinnedSahBuilder: bins must be in [2, 256]");
-        if (cfg.leaf_block < 1 || cfg.leaf_block > 16 || (cfg.leaf_block & (cfg.leaf_block - 1)))
-            throw std::invalid_argument("BinnedSahBuilder: leaf_block must be a power of two in [1, 16]");
+        check_leaf_block(cfg.leaf_block, "BinnedSahBuilder");
         Bvh bvh;
         const auto n = static_cast<std::uint32_t>(boxes.size());
         if (n == 0) return bvh;
@@ -246,7 +245,7 @@ private:
 
         /// SAH weight of n primitives: n, or the number of blocks they fill.
         float blocks(std::uint32_t n) const noexcept {
-            return float((n + cfg.leaf_block - 1) >> std::countr_zero(cfg.leaf_block));
+            return leaf_block_weight(n, cfg.leaf_block);
         }
 
         void make_leaf(std::uint32_t node, std::uint32_t b, std::uint32_t e, const AABB& box) {

@@ -45,8 +45,6 @@
 #include <limits>
 #include <new>
 #include <span>
-#include <stdexcept>
-#include <string>
 #include <thread>
 #include <type_traits>
 #include <utility>
@@ -54,6 +52,7 @@
 
 #include "raykit/bvh/depth.hpp"
 #include "raykit/bvh/node.hpp"
+#include "raykit/bvh/sah.hpp"
 #include "raykit/util/parallel.hpp"
 
 namespace raykit {
@@ -68,20 +67,9 @@ struct LeafCollapseConfig {
     /// 1 for one-at-a-time tests, 4 for 4-triangle SIMD blocks (scene/block_bvh.hpp).
     unsigned leaf_block = 1;
 
-    /// The SAH weight of n primitives in one leaf.
-    float blocks(std::uint32_t n) const noexcept {
-        const unsigned b = leaf_block > 1 ? leaf_block : 1u;
-        return float((n + b - 1) / b);
-    }
+    /// The SAH weight of n primitives in one leaf (bvh/sah.hpp).
+    float blocks(std::uint32_t n) const noexcept { return leaf_block_weight(n, leaf_block); }
 };
-
-namespace detail {
-/// Throws unless leaf_block is a power of two in [1, 16] (every builder's check).
-inline void check_leaf_block(unsigned leaf_block, const char* builder) {
-    if (leaf_block < 1 || leaf_block > 16 || (leaf_block & (leaf_block - 1)))
-        throw std::invalid_argument(std::string(builder) + ": leaf_block must be a power of two in [1, 16]");
-}
-}  // namespace detail
 
 namespace detail {
 

@@ -389,7 +389,7 @@ private:
         if (boxes.size() != centers.size())
             throw std::invalid_argument("PairwiseBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("PairwiseBuilder: too many primitives");
-        detail::check_leaf_block(cfg.leaf_block, "PairwiseBuilder");
+        check_leaf_block(cfg.leaf_block, "PairwiseBuilder");
         const unsigned threads = resolve_threads(cfg.threads);
         const bool area = cfg.metric == Config::Metric::area;
         const auto n = static_cast<std::uint32_t>(boxes.size());

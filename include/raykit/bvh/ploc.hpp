@@ -78,7 +78,7 @@ struct PlocBuilder {
         if (boxes.size() != centers.size())
             throw std::invalid_argument("PlocBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("PlocBuilder: too many primitives");
-        detail::check_leaf_block(cfg.leaf_block, "PlocBuilder");
+        check_leaf_block(cfg.leaf_block, "PlocBuilder");
         if (cfg.radius < 1 || cfg.radius > 1024) throw std::invalid_argument("PlocBuilder: radius must be in [1, 1024]");
         const unsigned threads = resolve_threads(cfg.threads);
         const auto n = static_cast<std::uint32_t>(boxes.size());

@@ -118,7 +118,7 @@ struct SortAxisBuilder {
         if (boxes.size() != centers.size())
             throw std::invalid_argument("SortAxisBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("SortAxisBuilder: too many primitives");
-        detail::check_leaf_block(cfg.leaf_block, "SortAxisBuilder");
+        check_leaf_block(cfg.leaf_block, "SortAxisBuilder");
         if (cfg.window < 1 || cfg.window > 4096)
             throw std::invalid_argument("SortAxisBuilder: window must be in [1, 4096]");
         const unsigned threads = resolve_threads(cfg.threads);

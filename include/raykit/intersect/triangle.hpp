@@ -52,12 +52,6 @@ struct Watertight {
         return U * Az + V * Bz + W * Cz;
 #endif
     }
-    static constexpr bool kFused =
-#if RAYKIT_FAST_FMA
-        true;
-#else
-        false;
-#endif
 
     /// Zero area: every component of the edges' cross product, in double
     /// from the float vertices, is zero (its two products compare equal):
