@@ -8,7 +8,8 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 bash "$root/scripts/deps.sh"
 build=${RAYKIT_BUILD_DIR:-$root/build}/release
-cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release -DRAYKIT_BUILD_TESTS=OFF -DRAYKIT_BUILD_BENCHMARKS=OFF >/dev/null
+cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release -DRAYKIT_BUILD_TESTS=OFF -DRAYKIT_BUILD_BENCHMARKS=OFF \
+      -DRAYKIT_BUILD_EXAMPLES=ON -DRAYKIT_SANITIZE=OFF -DRAYKIT_NATIVE=ON -DRAYKIT_BUILD_FUZZERS=OFF >/dev/null
 cmake --build "$build" -j"$(nproc)" --target raykit_cli
 rk="$build/bin/raykit"
 out="$root/out"

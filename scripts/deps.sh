@@ -5,13 +5,15 @@ set -euo pipefail
 pkgs=(
   cmake g++ make pkg-config
   libglm-dev                      # math
-  libstb-dev                      # image load/save (renderer)
+  libstb-dev                      # PNG writing; BMP/TGA texture decoding (after raykit checks the header)
+  libpng-dev libturbojpeg0-dev    # PNG and JPEG texture decoding (fuzzed upstream)
   opencl-c-headers opencl-clhpp-headers ocl-icd-opencl-dev  # OpenCL device path
   pocl-opencl-icd                 # the default OpenCL device: PoCL on the CPU
   libgtest-dev libbenchmark-dev   # tests, benchmarks
   libtinyobjloader-dev            # test oracle for the OBJ loader
   assimp-testmodels               # real OBJ/SMD files for the loader tests
   libembree-dev                   # benchmark peer
+  clang libclang-rt-14-dev        # libFuzzer targets (tests/fuzz), smoke-run by scripts/test.sh
 )
 missing=()
 for p in "${pkgs[@]}"; do

@@ -1,17 +1,29 @@
 #!/usr/bin/env bash
-# Builds raykit and runs every test twice: a Release build, then the same suite
-# under AddressSanitizer + UndefinedBehaviorSanitizer. Installs what is missing.
+# Builds raykit and runs every test three ways: a Release build, the same suite under
+# AddressSanitizer + UndefinedBehaviorSanitizer, and a short run of every libFuzzer target
+# (clang, ASan + UBSan) on its seed corpus and regression inputs. Installs what is missing.
+# Every option each build needs is set here (CMake caches options per build folder, and
+# scripts/demo.sh shares build/release with tests off); ctest fails when no test ran.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 bash "$root/scripts/deps.sh"
 jobs=$(nproc)
 build=${RAYKIT_BUILD_DIR:-$root/build}
 
-cmake -S "$root" -B "$build/release" -DCMAKE_BUILD_TYPE=Release
+cmake -S "$root" -B "$build/release" -DCMAKE_BUILD_TYPE=Release -DRAYKIT_BUILD_TESTS=ON \
+      -DRAYKIT_BUILD_EXAMPLES=ON -DRAYKIT_BUILD_BENCHMARKS=ON -DRAYKIT_SANITIZE=OFF -DRAYKIT_NATIVE=ON \
+      -DRAYKIT_BUILD_FUZZERS=OFF
 cmake --build "$build/release" -j"$jobs"
-ctest --test-dir "$build/release" --output-on-failure -j"$jobs"
+ctest --test-dir "$build/release" --output-on-failure --no-tests=error -j"$jobs"
 
 cmake -S "$root" -B "$build/asan" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRAYKIT_SANITIZE=ON \
-      -DRAYKIT_BUILD_BENCHMARKS=OFF -DRAYKIT_NATIVE=OFF
+      -DRAYKIT_BUILD_TESTS=ON -DRAYKIT_BUILD_EXAMPLES=ON -DRAYKIT_BUILD_BENCHMARKS=OFF -DRAYKIT_NATIVE=OFF \
+      -DRAYKIT_BUILD_FUZZERS=OFF
 cmake --build "$build/asan" -j"$jobs"
-ctest --test-dir "$build/asan" --output-on-failure -j"$jobs" -LE package
+ctest --test-dir "$build/asan" --output-on-failure --no-tests=error -j"$jobs" -LE package
+
+cmake -S "$root" -B "$build/fuzz" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
+      -DRAYKIT_BUILD_FUZZERS=ON -DRAYKIT_BUILD_TESTS=OFF -DRAYKIT_BUILD_EXAMPLES=OFF \
+      -DRAYKIT_BUILD_BENCHMARKS=OFF -DRAYKIT_SANITIZE=OFF -DRAYKIT_NATIVE=OFF
+cmake --build "$build/fuzz" -j"$jobs"
+ctest --test-dir "$build/fuzz" --output-on-failure --no-tests=error -j"$jobs" -L fuzz
