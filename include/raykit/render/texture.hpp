@@ -1,4 +1,4 @@
-// raykit/render/texture.hpp — 8-bit RGBA textures: loading (JPG, PNG, BMP, TGA via stb_image),
+// raykit/render/texture.hpp — 8-bit RGBA textures: loading (PNG, JPEG, BMP, TGA through image_decode.hpp),
 // sRGB decoding, bilinear or nearest sampling with wrap addressing, alpha.
 //
 // Interface
@@ -38,6 +38,7 @@
 
 #include "raykit/math/types.hpp"
 #include "raykit/render/image.hpp"
+#include "raykit/render/image_decode.hpp"
 
 namespace raykit {
 
@@ -188,36 +189,26 @@ inline Texture placeholder_texture() {
     return t;
 }
 
-/// Loads a JPG, PNG, BMP or TGA file (anything stb_image reads) as 8-bit RGBA. `srgb` says
-/// whether the colour channels are sRGB-encoded (true for colour maps such as map_Kd).
-/// A file that is missing or cannot be decoded gives placeholder_texture() (with `source` set)
-/// and one message appended to `warnings` when it is not null; nothing is thrown for that.
+/// Loads a PNG, JPEG, BMP or TGA file (render/image_decode.hpp: bounded, fuzzed decoders) as
+/// 8-bit RGBA. `srgb` says whether the colour channels are sRGB-encoded (true for colour maps
+/// such as map_Kd). A file that is missing, cannot be decoded or is over the image limits gives
+/// placeholder_texture() (with `source` set) and one message naming the file appended to
+/// `warnings` when it is not null; nothing is thrown for that. A decoder's report of damaged
+/// data it could still decode (a truncated JPEG, say) is appended to `warnings` too.
 inline Texture load_texture(const std::filesystem::path& file, bool srgb = true,
                             std::vector<std::string>* warnings = nullptr) {
-    auto fallback = [&](const std::string& why) {
-        if (warnings) warnings->push_back("texture " + file.string() + ": " + why + " (using a placeholder)");
+    DecodedImage img;
+    try {
+        img = read_image(file);
+    } catch (const ImageDecodeError& e) {
+        if (warnings) warnings->push_back(std::string("texture ") + e.what() + " (using a placeholder)");
         Texture t = placeholder_texture();
         t.source = file.string();
         return t;
-    };
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(file, ec)) return fallback("file not found");
-    std::ifstream in(file, std::ios::binary);
-    if (!in) return fallback("cannot open");
-    const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (bytes.empty()) return fallback("empty file");
-    if (bytes.size() > std::size_t(0x7fffffff)) return fallback("file too large");
-    int w = 0, h = 0, comp = 0;
-    stbi_uc* data = stbi_load_from_memory(reinterpret_cast<const stbi_uc*>(bytes.data()), int(bytes.size()), &w,
-                                          &h, &comp, 4);
-    if (!data || w <= 0 || h <= 0) {
-        const char* reason = stbi_failure_reason();
-        if (data) stbi_image_free(data);
-        return fallback(std::string("cannot decode: ") + (reason ? reason : "unknown error"));
     }
-    std::vector<std::uint8_t> px(data, data + std::size_t(w) * std::size_t(h) * 4);
-    stbi_image_free(data);
-    Texture t = make_texture(std::uint32_t(w), std::uint32_t(h), std::move(px), srgb);
+    if (warnings)
+        for (const std::string& w : img.warnings) warnings->push_back("texture " + w);
+    Texture t = make_texture(img.width, img.height, std::move(img.rgba), srgb);
     t.source = file.string();
     return t;
 }
