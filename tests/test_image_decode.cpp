@@ -284,3 +284,33 @@ TEST(ImageDecode, SharedTexturesDecode) {
     }
     EXPECT_GT(n, 10);
 }
+
+// A PFM header is a few bytes of text: "PF 1048576 1048576 -1" asked for 16 TiB before the size
+// was checked against the limits and against the bytes the file holds.
+TEST(ImageDecode, PfmHeadersAreCheckedBeforeAllocation) {
+    const auto dir = temp_dir("pfm");
+    auto write = [&](const std::string& name, const std::string& text) {
+        std::ofstream(dir / name, std::ios::binary) << text;
+        return dir / name;
+    };
+    auto refused = [&](const std::filesystem::path& p, const std::string& what) {
+        try {
+            read_pfm(p);
+            ADD_FAILURE() << p << " was read";
+        } catch (const std::runtime_error& e) {
+            EXPECT_NE(std::string(e.what()).find(p.string()), std::string::npos) << e.what();
+            EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+        }
+    };
+    refused(write("huge.pfm", "PF\n1048576 1048576\n-1\n"), "over raykit's image limit");
+    refused(write("short.pfm", "PF\n4000 4000\n-1\n" + std::string(64, '\0')), "truncated data");
+    refused(write("grey.pfm", "Pf\n3 2\n-1\n" + std::string(6 * 4 - 1, '\0')), "truncated data");
+    refused(dir, "not a regular file");
+    // and a real one still reads
+    Image img(3, 2);
+    for (std::size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = vec4(float(i), 0.5f, -1.0f, 1.0f);
+    write_pfm(img, dir / "ok.pfm");
+    const Image back = read_pfm(dir / "ok.pfm");
+    ASSERT_EQ(back.pixels.size(), img.pixels.size());
+    for (std::size_t i = 0; i < img.pixels.size(); ++i) EXPECT_EQ(back.pixels[i], img.pixels[i]);
+}

@@ -12,7 +12,8 @@
 //   float s = linear_to_srgb(l);
 //
 // Errors: write_png / write_pfm throw std::runtime_error naming the file when it cannot be
-// written; read_pfm throws std::runtime_error for an unreadable or malformed file; rmse throws
+// written; read_pfm throws std::runtime_error for an unreadable or malformed file, or one whose
+// header claims more pixels than ImageLimits or than the file holds (checked before allocating); rmse throws
 // std::invalid_argument for images of different sizes.
 //
 // stb (Debian libstb-dev, <stb/stb_image.h> and <stb/stb_image_write.h>)
@@ -45,6 +46,7 @@
 #include <fstream>
 #include <stdexcept>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "raykit/math/types.hpp"
@@ -155,6 +157,20 @@ inline std::uint8_t linear_to_srgb8(float l) noexcept { return detail::to_byte(l
 
 /// Row-major RGBA float image; pixel (0, 0) is the top-left one (as in scene/camera.hpp).
 /// Colours are linear; alpha is coverage (1 = opaque).
+/// Default largest width or height a decoded image may have.
+inline constexpr std::uint32_t kMaxImageSide = 32768;
+/// Default largest pixel count a decoded image may have (2^26 = 64 Mi pixels, 256 MiB as RGBA8).
+inline constexpr std::uint64_t kMaxImagePixels = std::uint64_t(1) << 26;
+/// Default largest image file read at all (256 MiB).
+inline constexpr std::uint64_t kMaxImageFileBytes = std::uint64_t(1) << 28;
+
+/// What a decoder accepts before it allocates; tighter limits suit a tool that knows its textures.
+struct ImageLimits {
+    std::uint32_t max_side = kMaxImageSide;          ///< largest width or height
+    std::uint64_t max_pixels = kMaxImagePixels;      ///< largest width * height
+    std::uint64_t max_file_bytes = kMaxImageFileBytes;  ///< largest file
+};
+
 struct Image {
     std::uint32_t width = 0;
     std::uint32_t height = 0;
@@ -246,21 +262,31 @@ inline void write_pfm(const Image& img, const std::filesystem::path& file) {
 
 /// Reads a PFM ("PF" colour or "Pf" greyscale, either byte order). Alpha is set to 1.
 /// Throws std::runtime_error naming the file when it is unreadable or malformed.
-inline Image read_pfm(const std::filesystem::path& file) {
+inline Image read_pfm(const std::filesystem::path& file, const ImageLimits& lim = {}) {
     std::ifstream in(file, std::ios::binary);
     auto fail = [&](const std::string& why) {
         return std::runtime_error("raykit::read_pfm: " + file.string() + ": " + why);
     };
     if (!in) throw fail("cannot open");
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(file, ec)) throw fail("not a regular file");
+    const std::uintmax_t file_bytes = std::filesystem::file_size(file, ec);
+    if (ec) throw fail("cannot read its size");
     std::string magic;
     long long w = 0, h = 0;
     double scale = 0.0;
     if (!(in >> magic >> w >> h >> scale)) throw fail("malformed header");
     if (magic != "PF" && magic != "Pf") throw fail("not a PFM file (magic '" + magic + "')");
-    if (w <= 0 || h <= 0 || w > (1 << 20) || h > (1 << 20) || scale == 0.0 || !std::isfinite(scale))
-        throw fail("bad size or scale");
-    in.get();  // the single whitespace character after the scale
+    if (w <= 0 || h <= 0 || scale == 0.0 || !std::isfinite(scale)) throw fail("bad size or scale");
+    if (std::uint64_t(w) > lim.max_side || std::uint64_t(h) > lim.max_side ||
+        std::uint64_t(w) * std::uint64_t(h) > lim.max_pixels)
+        throw fail(std::to_string(w) + " x " + std::to_string(h) + " pixels is over raykit's image limit");
     const int comp = magic == "PF" ? 3 : 1;
+    // the pixels must be in the file before an image is allocated for them
+    const std::uint64_t need = std::uint64_t(w) * std::uint64_t(h) * std::uint64_t(comp) * 4;
+    const auto at = in.tellg();
+    if (at < 0 || std::uint64_t(at) + 1 + need > file_bytes) throw fail("truncated data");
+    in.get();  // the single whitespace character after the scale
     const bool file_le = scale < 0.0;
     const bool swap = file_le != detail::host_is_little_endian();
     Image img(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h));

@@ -40,20 +40,6 @@
 
 namespace raykit {
 
-/// Default largest width or height a decoded image may have.
-inline constexpr std::uint32_t kMaxImageSide = 32768;
-/// Default largest pixel count a decoded image may have (2^26 = 64 Mi pixels, 256 MiB as RGBA8).
-inline constexpr std::uint64_t kMaxImagePixels = std::uint64_t(1) << 26;
-/// Default largest image file read at all (256 MiB).
-inline constexpr std::uint64_t kMaxImageFileBytes = std::uint64_t(1) << 28;
-
-/// What a decoder accepts before it allocates; tighter limits suit a tool that knows its textures.
-struct ImageLimits {
-    std::uint32_t max_side = kMaxImageSide;          ///< largest width or height
-    std::uint64_t max_pixels = kMaxImagePixels;      ///< largest width * height
-    std::uint64_t max_file_bytes = kMaxImageFileBytes;  ///< largest file
-};
-
 /// An image file that cannot be decoded, or is over the limits; the message names the file.
 struct ImageDecodeError : std::runtime_error {
     using std::runtime_error::runtime_error;
