@@ -162,6 +162,18 @@ inline DecodedImage decode_stb(ImageFormat f, const std::uint8_t* data, std::siz
         }
     } else {
         if (size < 18) image_fail(name, "TGA: file too short for its header");
+        // stb_image picks its decoder by content, trying JPEG, PNG, BMP, GIF, PSD, PIC, PNM and
+        // HDR before TGA, so a file named .tga holding a JPEG (its SOI after 0xff fill bytes)
+        // would reach stb's JPEG decoder (found by fuzz_texture: out-of-bounds index in
+        // stbi__build_huffman). A TGA's colour-map type (byte 1) is 0 or 1 and its image type
+        // (byte 2) one of 1, 2, 3, 9, 10, 11; no other format stb knows passes its own test
+        // with such a byte 1, so with these checks only stb's TGA decoder runs.
+        const std::uint8_t map_type = data[1], image_type = data[2];
+        const bool type_ok = image_type == 1 || image_type == 2 || image_type == 3 || image_type == 9 ||
+                             image_type == 10 || image_type == 11;
+        if (map_type > 1 || !type_ok)
+            image_fail(name, "TGA: not a TGA header (colour-map type " + std::to_string(map_type) + ", image type " +
+                                 std::to_string(image_type) + ")");
         image_check_size(image_le16(data + 12), image_le16(data + 14), name, lim);
     }
     if (size > 0x7fffffffu) image_fail(name, std::string(what) + " file too large");
