@@ -1205,6 +1205,17 @@ TEST(ObjScale, ManyTexcoordsPerPositionNumbersVerticesInOrderOfFirstUse) {
     }
 }
 
+TEST(ObjErrors, NulBytesInFileNamesAreErrors) {
+    // The OS would see the name cut at the NUL: a different file than the one named.
+    TempDir dir;
+    dir.write("a", "newmtl red\n");  // what "a\0b.mtl" would have opened
+    const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    expect_error([&] { parse(tri + std::string("mtllib a\0b.mtl\n", 15), dir.path()); }, kFixtureName, 5,
+                 "NUL byte in file name");
+    expect_error([&] { raykit::parse_mtl(std::string("newmtl a\nmap_Kd x\0y.png\n", 24), "m.mtl", dir.path()); },
+                 "m.mtl", 2, "NUL byte in file name");
+}
+
 TEST(ObjErrors, WhatIsNotARegularFileIsRefusedNamingIt) {
     TempDir dir;
     expect_error([&] { raykit::load_mtl(dir.path()); }, dir.path().string(), 0, "is a directory");

@@ -56,7 +56,8 @@
 //   missing or unreadable library is a warning in Mesh::warnings, not an
 //   error; a malformed one throws ParseError naming the MTL file. With
 //   ObjOptions::load_materials == false, `mtllib` is ignored and every
-//   material id is kNoMaterial (no warnings).
+//   material id is kNoMaterial (no warnings). A NUL byte in an `mtllib` or
+//   `map_Kd` name is an error (the OS would open the name cut at the NUL).
 // * All other keywords (`s`, `l`, `p`, `vp`, `curv`, `c`, ...) are ignored:
 //   lines and points make no triangles.
 // * A file that yields no triangle gets one warning ("NAME:0: no triangles"),
@@ -267,6 +268,8 @@ private:
     /// base_ / file; where that does not exist and `file` has Windows `\`
     /// separators (`.\SpiderTex.jpg`), they become `/`.
     std::string texture_path(std::string_view file) const {
+        // The OS would cut the name at the NUL and open another file.
+        if (file.find('\0') != std::string_view::npos) fail("NUL byte in file name " + obj_quote(file));
         std::filesystem::path p = base_ / std::filesystem::path(file);
         std::error_code ec;
         if (file.find('\\') != std::string_view::npos && !std::filesystem::exists(p, ec)) {
@@ -556,6 +559,7 @@ private:
 
     void material_library(std::string_view rest) {
         if (rest.empty()) return;
+        if (rest.find('\0') != std::string_view::npos) fail("NUL byte in file name " + obj_quote(rest));
         std::vector<std::string> files;
         if (library_exists(base_ / std::filesystem::path(rest))) {
             files.emplace_back(rest);
