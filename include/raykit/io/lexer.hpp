@@ -10,7 +10,8 @@
 // /dev/zero: reading /dev/zero used to end in std::bad_alloc) and files over
 // kMaxTextFileBytes; ObjLineReader refuses a logical line over kMaxLineBytes.
 // Both limits are far above real data: the largest OBJ in the shared test data
-// is tens of MB, and a line of 4 MiB holds a polygon of ~200,000 corners.
+// is 2.4 MB (stanford-bunny.obj), and a 4 MiB line holds a polygon of ~200,000
+// `v/vt/vn` corners.
 #pragma once
 
 #include <cerrno>
