@@ -26,6 +26,7 @@
 #include "raykit.hpp"
 #include "raykit/io/obj.hpp"
 #include "raykit/io/obj_write.hpp"
+#include "raykit/io/rays.hpp"
 #include "raykit/scene/build_options.hpp"
 #include "raykit/scene/generate.hpp"
 
@@ -227,50 +228,6 @@ decltype(auto) with_test(TestKind k, F&& f) {
         case TestKind::thesis: return f(ThesisTest{});
         default: return f(Watertight{});
     }
-}
-
-/// Parses one number field of a RAYS line; `allow_inf` for tmax.
-float ray_field(std::string_view tok, const std::string& file, std::size_t line, bool allow_inf) {
-    if (!tok.empty() && tok[0] == '+') tok.remove_prefix(1);
-    float v = 0.0f;
-    auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
-    if (ec != std::errc() || p != tok.data() + tok.size())
-        throw ParseError(file, line, "not a number: '" + std::string(tok) + "'");
-    if (std::isnan(v)) throw ParseError(file, line, "NaN in ray");
-    if (std::isinf(v) && !allow_inf) throw ParseError(file, line, "infinite value where only tmax may be inf");
-    return v;
-}
-
-std::vector<Ray> read_rays(const std::string& file) {
-    std::ifstream in(file, std::ios::binary);
-    if (!in) throw ParseError(file, 0, "cannot open rays file");
-    std::vector<Ray> rays;
-    std::string s;
-    std::size_t line = 0;
-    while (std::getline(in, s)) {
-        ++line;
-        if (!s.empty() && s.back() == '\r') s.pop_back();
-        std::vector<std::string_view> tok;
-        std::string_view v(s);
-        std::size_t i = 0;
-        while (i < v.size()) {
-            while (i < v.size() && (v[i] == ' ' || v[i] == '\t')) ++i;
-            std::size_t j = i;
-            while (j < v.size() && v[j] != ' ' && v[j] != '\t') ++j;
-            if (j > i) tok.push_back(v.substr(i, j - i));
-            i = j;
-        }
-        if (tok.empty() || tok[0][0] == '#') continue;
-        if (tok.size() != 8)
-            throw ParseError(file, line, "expected 8 fields (ox oy oz dx dy dz tmin tmax), got " + std::to_string(tok.size()));
-        Ray r;
-        for (int k = 0; k < 3; ++k) r.org[k] = ray_field(tok[k], file, line, false);
-        for (int k = 0; k < 3; ++k) r.dir[k] = ray_field(tok[3 + k], file, line, false);
-        r.tmin = ray_field(tok[6], file, line, false);
-        r.tmax = ray_field(tok[7], file, line, true);
-        rays.push_back(r);
-    }
-    return rays;
 }
 
 int cmd_trace(int argc, char** argv) {

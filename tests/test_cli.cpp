@@ -231,3 +231,45 @@ TEST(Cli, DeviceRenderTakesEveryShaderAndSpp) {
     }
 }
 #endif
+
+// ------------------------------------------------------------------ issue 12: inputs (OBJ, MTL, RAYS readers)
+
+TEST(CliInputs, TraceRefusesADirectoryAsRaysAndWritesNoHits) {
+    const fs::path scene = tmpdir() / "in_sphere.obj", hits = tmpdir() / "in_hits.txt";
+    save_obj(make_icosphere(1), scene);
+    const fs::path dir = tmpdir() / "rays_dir";
+    fs::create_directories(dir);
+    fs::remove(hits);
+    const Result r = run("trace " + scene.string() + " " + dir.string() + " " + hits.string());
+    expect_clean_error(r, 1, dir.string() + ":0: is a directory");
+    EXPECT_FALSE(fs::exists(hits)) << "a HITS file was written";
+}
+
+TEST(CliInputs, DeviceFilesAreRefusedNotReadForever) {
+    if (!fs::exists("/dev/zero")) GTEST_SKIP() << "no /dev/zero";
+    expect_clean_error(run("info /dev/zero"), 1, "/dev/zero:0: is not a regular file");
+    const fs::path scene = tmpdir() / "in_sphere2.obj";
+    save_obj(make_icosphere(1), scene);
+    expect_clean_error(run("trace " + scene.string() + " /dev/zero " + (tmpdir() / "h.txt").string()), 1,
+                       "/dev/zero:0: is not a regular file");
+}
+
+TEST(CliInputs, RaysUseTheObjNumberRule) {
+    const fs::path scene = tmpdir() / "in_sphere3.obj", rays = tmpdir() / "in_rays.txt",
+                   hits = tmpdir() / "in_hits3.txt";
+    save_obj(make_icosphere(2), scene);
+    write(rays, "0 0 -5 1e-46 0 1 0 inf\n");  // was "not a number"
+    const Result r = run("trace " + scene.string() + " " + rays.string() + " " + hits.string());
+    EXPECT_EQ(r.code, 0) << r.err;
+    write(rays, "0 0 -5 0 0 1 0 1e39\n");
+    expect_clean_error(run("trace " + scene.string() + " " + rays.string() + " " + hits.string()), 1,
+                       "in_rays.txt:1: number '1e39' overflows a float in 'tmax'");
+}
+
+TEST(CliInputs, ASceneWithoutTrianglesIsReported) {
+    const fs::path smd = tmpdir() / "in_walk.smd";
+    write(smd, "version 1\nnodes\n0 \"root\" -1\nend\nskeleton\ntime 0\n0 0 0 0 0 0 0\nend\n");
+    const Result r = run("info " + smd.string());
+    EXPECT_NE(r.err.find("raykit: warning: " + smd.string() + ":0: no triangles"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("'.smd'"), std::string::npos) << r.err;
+}

@@ -21,6 +21,8 @@
 #include <string_view>
 #include <vector>
 
+#include <sys/stat.h>
+
 namespace fs = std::filesystem;
 using raykit::kNoMaterial;
 using raykit::Mesh;
@@ -556,7 +558,8 @@ TEST(ObjMaterials, MissingLibraryIsAWarningNotAnError) {
     // A directory with the library's name is "not found" too.
     fs::create_directories(dir.path() / "dir.mtl");
     const Mesh d = parse("mtllib dir.mtl\n", dir.path());
-    EXPECT_EQ(d.warnings.size(), 1u);
+    ASSERT_EQ(d.warnings.size(), 2u);  // not found; no triangles
+    EXPECT_NE(d.warnings[0].find("dir.mtl"), std::string::npos) << d.warnings[0];
 }
 
 TEST(ObjMaterials, LoadMaterialsFalseSkipsLibraries) {
@@ -1159,6 +1162,197 @@ TEST(ObjCorpus, TinyobjMaterialFiles) {
         const Mesh m = raykit::load_obj(dir / "issue-356-leading-spaces-newmtl.obj");
         ASSERT_EQ(m.materials.size(), 1u);
         EXPECT_EQ(m.materials[0].name, "aaa");
+        ASSERT_EQ(m.warnings.size(), 1u);  // the file has no faces
+        EXPECT_NE(m.warnings[0].find("no triangles"), std::string::npos) << m.warnings[0];
+    }
+}
+
+// ------------------------------------------------------------------ issue 12: bounds and honesty
+
+TEST(ObjScale, ManyTexcoordsPerPositionNumbersVerticesInOrderOfFirstUse) {
+    // 8 positions, each used with thousands of distinct (vt, vn) pairs, plus
+    // repeated corners. The loader was quadratic here (per-position chains):
+    // this file took seconds; it must number vertices exactly as an
+    // independent std::map oracle does (order of first use of the triple).
+    constexpr int kPositions = 8, kTexcoords = 20000, kNormals = 3, kFaces = 30000;
+    std::mt19937 rng(12);
+    std::ostringstream text;
+    for (int i = 0; i < kPositions; ++i) text << "v " << i << " " << (i % 3) << " " << (i % 2) << "\n";
+    for (int i = 0; i < kTexcoords; ++i) text << "vt " << (i % 100) * 0.01 << " " << (i / 100) * 0.005 << "\n";
+    for (int i = 0; i < kNormals; ++i) text << "vn " << (i == 0) << " " << (i == 1) << " " << (i == 2) << "\n";
+    std::map<std::array<int, 3>, std::uint32_t> first_use;
+    std::vector<Tri> expected;
+    for (int f = 0; f < kFaces; ++f) {
+        text << "f";
+        Tri tri{};
+        for (int c = 0; c < 3; ++c) {
+            const std::array<int, 3> key{int(rng() % kPositions), int(rng() % kTexcoords), int(rng() % kNormals)};
+            text << " " << key[0] + 1 << "/" << key[1] + 1 << "/" << key[2] + 1;
+            tri[c] = first_use.try_emplace(key, static_cast<std::uint32_t>(first_use.size())).first->second;
+        }
+        text << "\n";
+        expected.push_back(tri);
+    }
+    const Mesh m = parse(text.str());
+    expect_valid_mesh(m);
+    ASSERT_EQ(m.positions.size(), first_use.size());
+    ASSERT_GT(first_use.size(), 80000u);  // most corners are new: ~11,000 per position
+    EXPECT_EQ(triangles_of(m), expected);
+    for (const auto& [key, id] : first_use) {
+        ASSERT_EQ(m.positions[id], vec3(float(key[0]), float(key[0] % 3), float(key[0] % 2)));
+        ASSERT_EQ(m.texcoords[id].x, float((key[1] % 100) * 0.01));
+        ASSERT_EQ(m.normals[id][key[2]], 1.0f);
+    }
+}
+
+TEST(ObjErrors, NulBytesInFileNamesAreErrors) {
+    // The OS would see the name cut at the NUL: a different file than the one named.
+    TempDir dir;
+    dir.write("a", "newmtl red\n");  // what "a\0b.mtl" would have opened
+    const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    expect_error([&] { parse(tri + std::string("mtllib a\0b.mtl\n", 15), dir.path()); }, kFixtureName, 5,
+                 "NUL byte in file name");
+    expect_error([&] { raykit::parse_mtl(std::string("newmtl a\nmap_Kd x\0y.png\n", 24), "m.mtl", dir.path()); },
+                 "m.mtl", 2, "NUL byte in file name");
+}
+
+TEST(ObjErrors, WhatIsNotARegularFileIsRefusedNamingIt) {
+    TempDir dir;
+    expect_error([&] { raykit::load_mtl(dir.path()); }, dir.path().string(), 0, "is a directory");
+    expect_error([&] { raykit::load_obj(dir.path()); }, dir.path().string(), 0, "is a directory");
+    if (fs::exists("/dev/zero")) {  // used to end in std::bad_alloc
+        expect_error([] { raykit::load_obj("/dev/zero"); }, "/dev/zero", 0, "not a regular file");
+        expect_error([] { raykit::load_mtl("/dev/zero"); }, "/dev/zero", 0, "not a regular file");
+    }
+    const fs::path fifo = dir.path() / "pipe.obj";
+    if (::mkfifo(fifo.c_str(), 0600) == 0) {  // opening it for reading would block forever
+        expect_error([&] { raykit::load_obj(fifo); }, fifo.string(), 0, "not a regular file");
+    }
+}
+
+TEST(ObjLexical, AbsurdlyLongLinesAreRefused) {
+    const std::string big(raykit::kMaxLineBytes + 1, '1');
+    expect_obj_error("v 0 0 0\nv " + big + " 0 0\n", 2, "line longer than");
+    // The limit is on the logical line: continuations count together.
+    const std::string half(raykit::kMaxLineBytes / 2 + 1, '1');
+    expect_obj_error("# a\nv " + half + " \\\n" + half + " 0\n", 2, "line longer than");
+    expect_error([&] { raykit::parse_mtl("newmtl a\nKd " + big + "\n", "m.mtl", {}); }, "m.mtl", 2,
+                 "line longer than");
+    // Just under the limit is fine (the number overflows, reported as such).
+    const std::string fits(raykit::kMaxLineBytes - 8, '1');
+    expect_obj_error("v " + fits + " 0 0\n", 1, "overflows a float");
+}
+
+TEST(ObjLexical, OneNumberRuleTinyIsZeroHugeIsAnError) {
+    const Mesh m = parse("v 1e-46 -1e-46 1e-40\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    EXPECT_EQ(m.positions[0].x, 0.0f);
+    EXPECT_TRUE(std::signbit(m.positions[0].y));
+    EXPECT_EQ(m.positions[0].z, 1e-40f);
+    expect_obj_error("v 1e39 0 0\n", 1, "'1e39' overflows a float");
+}
+
+TEST(Mtl, WindowsSeparatorsInTexturePathsAreNormalisedWhenThePathIsMissing) {
+    TempDir dir;
+    dir.write("tex/Spider Tex.jpg", "x");
+    dir.write("odd\\name.png", "x");  // a real file whose name has a backslash: kept as written
+    const fs::path mtl = dir.write("m.mtl",
+                                   "newmtl a\nmap_Kd .\\tex\\Spider Tex.jpg\n"
+                                   "newmtl b\nmap_Kd odd\\name.png\n"
+                                   "newmtl c\nmap_Kd -s 1 1 1 tex\\Spider Tex.jpg\n");
+    const std::vector<raykit::Material> mats = raykit::load_mtl(mtl);
+    ASSERT_EQ(mats.size(), 3u);
+    EXPECT_EQ(fs::path(mats[0].map_kd), dir.path() / "tex" / "Spider Tex.jpg");
+    EXPECT_TRUE(fs::exists(mats[0].map_kd)) << mats[0].map_kd;
+    EXPECT_EQ(fs::path(mats[1].map_kd), dir.path() / "odd\\name.png");
+    EXPECT_EQ(fs::path(mats[2].map_kd), dir.path() / "tex" / "Spider Tex.jpg");
+}
+
+TEST(Mtl, AssimpSpiderTexturesAreFound) {
+    const fs::path obj = "/usr/share/assimp/models/OBJ/spider.obj";
+    if (!fs::exists(obj)) GTEST_SKIP() << obj << " not installed";
+    const Mesh m = raykit::load_obj(obj);
+    int textured = 0;
+    for (const raykit::Material& mat : m.materials) {
+        if (mat.map_kd.empty()) continue;
+        ++textured;
+        EXPECT_TRUE(fs::is_regular_file(mat.map_kd)) << mat.name << ": " << mat.map_kd;
+    }
+    EXPECT_GT(textured, 0);
+}
+
+TEST(Mtl, UnsupportedStatementsWarnOncePerKeywordPerFile) {
+    TempDir dir;
+    const std::string text =
+        "map_Ks before.png\n"  // before the first newmtl: ignored silently
+        "newmtl a\nKd 1 0 0\nmap_Ka a.png\nmap_Ks s.png\n"
+        "newmtl b\nmap_Ka b.png\nTf 1 1 1\nmap_Kd d.png\n";
+    std::vector<std::string> warnings;
+    const std::vector<raykit::Material> mats = raykit::parse_mtl(text, "m.mtl", dir.path(), &warnings);
+    ASSERT_EQ(mats.size(), 2u);
+    ASSERT_EQ(warnings.size(), 3u);
+    EXPECT_EQ(warnings[0].rfind("m.mtl:4: ", 0), 0u) << warnings[0];
+    EXPECT_NE(warnings[0].find("'map_Ka'"), std::string::npos) << warnings[0];
+    EXPECT_EQ(warnings[1].rfind("m.mtl:5: ", 0), 0u) << warnings[1];
+    EXPECT_NE(warnings[1].find("'map_Ks'"), std::string::npos) << warnings[1];
+    EXPECT_EQ(warnings[2].rfind("m.mtl:8: ", 0), 0u) << warnings[2];
+    EXPECT_NE(warnings[2].find("'Tf'"), std::string::npos) << warnings[2];
+    // Every supported statement is silent.
+    warnings.clear();
+    raykit::parse_mtl("newmtl a\nKa 1\nKd 1 1 1\nKs 0\nKe 0\nNs 1\nNi 1\nd 1\nTr 0\nillum 2\nmap_Kd x.png\n", "n.mtl",
+                      dir.path(), &warnings);
+    EXPECT_TRUE(warnings.empty()) << warnings[0];
+    // Through an OBJ the warnings land in Mesh::warnings, naming the MTL file.
+    const fs::path mtl = dir.write("m.mtl", text);
+    dir.write("s.obj", "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n");
+    const Mesh m = raykit::load_obj(dir.path() / "s.obj");
+    ASSERT_EQ(m.warnings.size(), 3u);
+    EXPECT_EQ(m.warnings[0].rfind(mtl.string() + ":4: ", 0), 0u) << m.warnings[0];
+}
+
+TEST(ObjMaterials, LibrariesCanComeFromMemory) {
+    raykit::ObjOptions options;
+    std::vector<fs::path> asked;
+    options.read_material_library = [&](const fs::path& p) -> std::optional<std::string> {
+        asked.push_back(p);
+        if (p == fs::path("/nonexistent/raykit") / "mem.mtl") return std::string("newmtl red\nKd 1 0 0\n");
+        return std::nullopt;
+    };
+    const Mesh m = raykit::parse_obj("mtllib mem.mtl gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n",
+                                     kFixtureName, "/nonexistent/raykit", options);
+    ASSERT_EQ(m.materials.size(), 1u);
+    EXPECT_EQ(m.materials[0].kd, vec3(1, 0, 0));
+    EXPECT_EQ(m.material_ids, std::vector<std::uint32_t>{0});
+    ASSERT_EQ(m.warnings.size(), 1u);
+    EXPECT_NE(m.warnings[0].find("gone.mtl"), std::string::npos) << m.warnings[0];
+    EXPECT_FALSE(asked.empty());
+}
+
+TEST(ObjParse, FilesWithoutTrianglesWarnAndNameAForeignExtension) {
+    TempDir dir;
+    {
+        const Mesh m = parse("v 0 0 0\nv 1 0 0\n");
+        ASSERT_EQ(m.warnings.size(), 1u);
+        EXPECT_EQ(m.warnings[0].rfind("fixture.obj:0: no triangles", 0), 0u) << m.warnings[0];
+        EXPECT_EQ(m.warnings[0].find("is it an OBJ"), std::string::npos) << m.warnings[0];
+    }
+    {
+        // An SMD given as the scene parses to nothing (its keywords are not OBJ's).
+        const fs::path smd = dir.write("walk.smd",
+                                       "version 1\nnodes\n0 \"root\" -1\nend\nskeleton\ntime 0\n0 0 0 0 0 0 0\nend\n");
+        const Mesh m = raykit::load_obj(smd);
+        ASSERT_EQ(m.warnings.size(), 1u);
+        EXPECT_NE(m.warnings[0].find(smd.string() + ":0: no triangles"), std::string::npos) << m.warnings[0];
+        EXPECT_NE(m.warnings[0].find("'.smd'"), std::string::npos) << m.warnings[0];
+    }
+    {
+        const std::string png("\x89PNG\r\n\x1a\n\0\0\0\rIHDR\0\0\0\x01\0\0\0\x01\x08\x02\0\0\0", 33);
+        const fs::path bin = dir.write("image.PNG", png);
+        const Mesh m = raykit::load_obj(bin);
+        ASSERT_EQ(m.warnings.size(), 1u);
+        EXPECT_NE(m.warnings[0].find("'.png'"), std::string::npos) << m.warnings[0];
+    }
+    {
+        const Mesh m = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
         EXPECT_TRUE(m.warnings.empty());
     }
 }
