@@ -21,6 +21,7 @@
 #pragma once
 
 #include <cmath>
+#include <limits>
 #include <utility>
 
 #include "raykit/math/ray.hpp"
@@ -159,7 +160,12 @@ struct ThesisTest {
     static RAYKIT_INLINE bool intersect(const RayData& d, const vec3& p0, const vec3& p1,
                                         const vec3& p2, float tmin, float tmax, TriHit& out) noexcept {
         const vec3 n = glm::cross(p1 - p0, p2 - p0);
-        const float len = std::sqrt(glm::dot(n, n));
+        const float len2 = glm::dot(n, n);
+        // |n|^2 leaves float range for edges beyond ~4e9 (every outside ray
+        // then "hit", nu being 0) or below ~1e-10: only then take it in double
+        const float len = len2 > 0.0f && len2 <= std::numeric_limits<float>::max()
+                              ? std::sqrt(len2)
+                              : static_cast<float>(std::sqrt(double(n.x) * n.x + double(n.y) * n.y + double(n.z) * n.z));
         const float denom = glm::dot(n, d.dir);
         if (!(denom != 0.0f) || !(len > 0.0f)) return false;
         const float t = glm::dot(n, p0 - d.org) / denom;
