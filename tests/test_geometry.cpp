@@ -266,7 +266,7 @@ namespace {
 
 /// Wrong answers of each test (Watertight, MollerTrumbore, ThesisTest,
 /// Watertight4) against an oracle in long double computed from the same
-/// float inputs: hit/miss, and t within 1e-4 relative.
+/// float inputs: hit/miss, and t within 1e-3 relative.
 struct RangeTally {
     std::size_t rays = 0;
     std::size_t wrong[4] = {};
@@ -357,8 +357,11 @@ RangeTally range_oracle(double M, int layout, int n, std::uint64_t seed, bool th
         h[3].t = t4[0];
         for (int k = 0; k < 4; ++k) {
             if (k == 2 && !thesis) continue;
+            // 1e-3: Möller–Trumbore's cancellation reaches 2e-4 on some judged
+            // rays at every scale (seen without FMA); overflow and underflow
+            // give inf, 0 or errors near 100%
             const bool bad = got[k] != (expect == 1) ||
-                             (got[k] && !(std::fabs(static_cast<long double>(h[k].t) - t_true) <= 1e-4L * t_true));
+                             (got[k] && !(std::fabs(static_cast<long double>(h[k].t) - t_true) <= 1e-3L * t_true));
             tally.wrong[k] += bad;
         }
     }
