@@ -7,6 +7,7 @@
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "raykit.hpp"
 #include "raykit/math/limits.hpp"
@@ -419,4 +420,26 @@ TEST(CoordinateRange, RaysOutsideTheRuleAreRejectedByName) {
             EXPECT_NE(std::string(e.what()).find(b.says), std::string::npos) << e.what();
         }
     }
+}
+
+TEST(CoordinateRange, CheckPositionsDrawsTheLineAtTheBoundAndLetsNonFiniteThrough) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float up = next_float_up(kMaxCoordinate);
+    std::vector<vec3> p = {{0.0f, -0.0f, 1e-45f}, {kMaxCoordinate, -kMaxCoordinate, nan}, {kInf, -kInf, -nan}};
+    EXPECT_NO_THROW(check_positions(p, "test"));
+    for (const float bad : {up, -up, 1e20f, -std::numeric_limits<float>::max()})
+        for (int a = 0; a < 3; ++a) {
+            std::vector<vec3> q = p;
+            q.push_back(vec3(0.0f));
+            q.back()[a] = bad;
+            try {
+                check_positions(q, "test");
+                ADD_FAILURE() << "accepted " << bad;
+            } catch (const std::domain_error& e) {
+                const std::string w = e.what();
+                EXPECT_EQ(w.rfind("test: vertex 3 coordinate ", 0), 0u) << w;
+                EXPECT_NE(w.find(std::string(1, "xyz"[a]) + " = "), std::string::npos) << w;
+            }
+            EXPECT_EQ(coordinate_in_range(bad), false);
+        }
 }

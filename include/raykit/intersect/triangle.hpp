@@ -18,6 +18,13 @@
 //
 // All three return no hit for degenerate (zero-area) triangles and for any
 // NaN/inf vertex. u, v are the barycentric weights of p1 and p2.
+//
+// Range: the answers are right only inside math/limits.hpp's rule (vertex
+// and origin coordinates within ±2^32, the direction's largest component in
+// [2^-16, 2^16]). Beyond it the float t numerators overflow: measured against
+// a long-double oracle, Watertight's t goes wrong from coordinates ~1e13 from
+// the origin and its hits from ~1e14; Möller–Trumbore reports hits at t = inf
+// from ~1e13. Trees refuse such meshes; callers check rays with check_ray.
 #pragma once
 
 #include <cmath>
