@@ -27,6 +27,7 @@
 // from ~1e13. Trees refuse such meshes; callers check rays with check_ray.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <utility>
@@ -172,7 +173,8 @@ struct ThesisTest {
         // then "hit", nu being 0) or below ~1e-10: only then take it in double
         const float len = len2 > 0.0f && len2 <= std::numeric_limits<float>::max()
                               ? std::sqrt(len2)
-                              : static_cast<float>(std::sqrt(double(n.x) * n.x + double(n.y) * n.y + double(n.z) * n.z));
+                              : static_cast<float>(std::min(std::sqrt(double(n.x) * n.x + double(n.y) * n.y + double(n.z) * n.z),
+                                                            double(std::numeric_limits<float>::max())));
         const float denom = glm::dot(n, d.dir);
         if (!(denom != 0.0f) || !(len > 0.0f)) return false;
         const float t = glm::dot(n, p0 - d.org) / denom;

@@ -13,33 +13,39 @@
 // Why 2^32: the tests work in float. The watertight test's t numerator
 // T = U·Az + V·Bz + W·Cz grows as (triangle size)^2 · distance / |d_kz|, so it
 // overflows float (3.4e38) from about 1e13 (cube root of 3.4e38 is 7e12);
-// Möller–Trumbore's dot(e2, cross(s, e1)) likewise. Measured with a seeded
-// oracle in long double (20 000 rays per magnitude aimed at barycentric
-// weights >= 0.1 inside or <= -0.1 outside a random triangle, grazing rays
-// with |cos| < 0.05 left out; "wrong" = hit/miss differs or t off by > 1e-4
-// relative), before this rule:
+// Möller–Trumbore's dot(e2, cross(s, e1)) likewise. Measured before this rule
+// with a seeded oracle in long double (rays aimed at barycentric weights
+// >= 0.1 inside or <= -0.1 outside a random triangle, grazing rays with
+// |cos| < 0.05 left out; "wrong" = hit/miss differs or t off by > 1e-4
+// relative; about 18 800 judged rays per magnitude):
 //   vertices at distance M from an origin near 0, |d| = 1:
 //     Watertight (and Watertight4, bit for bit): 0 wrong up to 1e12; 1e13:
-//       2 950 wrong t; 1e14: 36 wrong hit/miss and 9 399 wrong t; >= 1e21 all wrong.
-//     MollerTrumbore: 0 wrong up to 1e12; 1e13: 193 wrong hit/miss (t = inf
-//       reported as a hit) and 2 571 wrong t.
-//     ThesisTest: dot(n, n) overflows from edges of ~4e9 (|n|^2 > 3.4e38), so
+//       2 950 wrong t; 1e14: 36 wrong hit/miss and 9 399 wrong t; 1e20:
+//       8 422 wrong hit/miss; from 1e21 every answer wrong.
+//     MollerTrumbore: 0 wrong up to 1e12; 1e13: 193 wrong hit/miss (hits
+//       reported at t = inf) and 2 571 wrong t.
+//     ThesisTest: dot(n, n) overflows from edges of ~4e9 (|n|^2 > 3.4e38) and
 //       every outside ray "hit"; fixed (its length falls back to double).
 //   origin and vertices anywhere in [-M, M]^3, direction's largest component
-//     2^k with k uniform in [-16, 16] (a short d makes T larger):
-//     Watertight: 0 wrong up to 2^36 (6.9e10); 2^38: 5 wrong hit/miss, 3 397
-//       wrong t. With k in [-24, 24] it fails from 2^36, in [-32, 32] from 2^32.
-// So 2^32 with |d_kz| >= 2^-16 keeps a factor of 16 in coordinates (2^12 in
-// T) below the first measured failure; 2^16 above bounds the other side
-// (T underflow). tests/test_geometry.cpp runs the same oracle at 1, 1e3, 1e6,
-// 1e9 and 2^32 and asserts 0 wrong answers for all three tests and Watertight4.
+//     2^k with k uniform in [-16, 16] (a short d makes T larger; 185 000 rays):
+//     Watertight: 0 wrong up to 2^36 (6.9e10); 2^38: 5 wrong hit/miss and
+//       3 397 wrong t. With k in [-24, 24] it fails from 2^36, in [-32, 32]
+//       from 2^32; direction length alone (2^-120 .. 2^120, geometry ~1)
+//       changes nothing.
+// So 2^32 with |d_kz| >= 2^-16 stays a factor of 16 in coordinates (2^12 in
+// T) below the first measured failure; the 2^16 cap keeps T from underflowing
+// on ordinary geometry. tests/test_geometry.cpp runs the oracle (4 000 rays
+// per case, t within 1e-3) at 1, 1e3, 1e6, 1e9 and 2^32 and asserts 0 wrong
+// answers for all three tests and Watertight4, FMA on and off; it fails at
+// 1e14, and at 2^40 if the bound is raised there (383 of 3 663 wrong).
 //
-// Not covered: tiny scales. With the whole scene scaled down (origin at M,
-// triangle of size 1e-3·M), T ~ size^2 · distance underflows: from M = 1e-10
-// (triangles of 1e-13) t loses accuracy (61 of 18 806 off by > 1e-4), from
-// M = 1e-14 every t is wrong and below 1e-16 hits are missed. No coordinate
-// bound can exclude that (0 is a valid coordinate), so it is left to the
-// caller's units: keep triangles that rays must resolve larger than ~1e-9.
+// Not covered: tiny scales. Scaling a whole scene down (origin at M, a
+// triangle of size 1e-3·M as far from it) underflows T: clean at M = 1e-9,
+// from M = 1e-10 t loses accuracy (61 of 18 806 off by > 1e-4), from 1e-14
+// every t is wrong; hit/miss (edge functions in double) holds to 1e-14, from
+// 1e-15 hits are missed (16 of 18 805), below 1e-16 most. No coordinate bound can
+// exclude this (0 is a valid coordinate), so it is the caller's units: keep
+// what rays must resolve (triangle sizes and hit distances) above ~1e-11.
 #pragma once
 
 #include <bit>
