@@ -10,9 +10,13 @@
 #include <filesystem>
 #include <limits>
 #include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "raykit.hpp"
 #include "raykit/io/obj.hpp"
+#include "raykit/math/limits.hpp"
 #include "raykit/scene/build_options.hpp"
 #include "raykit/scene/generate.hpp"
 #include "test_support.hpp"
@@ -215,4 +219,36 @@ TEST(BlockBvh, RealMeshesMatchBruteForce) {
         bad += h.prim != o2.prim || h.t != o2.t || intersect_any(b, r) != o2.valid();
     }
     EXPECT_EQ(bad, 0u) << "of " << rays.size();
+}
+
+TEST(BlockBvh, BuildAndMakeRejectVerticesBeyondTheCoordinateBound) {
+    Mesh m = make_random_soup(40, 4);
+    m.positions[7].x = -2e19f;
+    const auto says = [](const std::domain_error& e, const char* who) {
+        const std::string w = e.what();
+        EXPECT_NE(w.find(who), std::string::npos) << w;
+        EXPECT_NE(w.find("vertex 7 coordinate x = -2e+19"), std::string::npos) << w;
+        EXPECT_NE(w.find("2^32"), std::string::npos) << w;
+    };
+    try {
+        (void)BlockBvh8::build(m);
+        ADD_FAILURE() << "BlockBvh8::build accepted a vertex at -2e19";
+    } catch (const std::domain_error& e) {
+        says(e, "raykit: mesh");
+    }
+    // a tree made without primitive_refs (boxes from elsewhere): make() checks on its own
+    std::vector<AABB> boxes(m.triangles.size(), AABB{vec3(0.0f), vec3(1.0f)});
+    std::vector<vec3> centers(m.triangles.size(), vec3(0.5f));
+    const Bvh bvh = BinnedSahBuilder::build(boxes, centers, BinnedSahBuilder::Config{});
+    for (int w : {2, 8}) {
+        try {
+            if (w == 2) (void)BlockBvh2::make(m, bvh);
+            else (void)BlockBvh8::make(m, bvh);
+            ADD_FAILURE() << "BlockBvh make accepted a vertex at -2e19, width " << w;
+        } catch (const std::domain_error& e) {
+            says(e, "BlockBvh::make");
+        }
+    }
+    m.positions[7].x = -kMaxCoordinate;  // the bound itself is inside
+    EXPECT_NO_THROW((void)BlockBvh8::build(m));
 }

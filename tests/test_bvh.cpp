@@ -4,11 +4,18 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <initializer_list>
 #include <random>
+#include <stdexcept>
+#include <string>
 #include <type_traits>
+
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "raykit.hpp"
 #include "test_support.hpp"
+#include "raykit/math/limits.hpp"
+#include "raykit/scene/build_options.hpp"
 #include "raykit/scene/generate.hpp"
 #include "raykit/scene/leaf_triangles.hpp"
 
@@ -531,4 +538,108 @@ TEST(WideBvh, EightWideCollapse) {
         ASSERT_EQ(a.t, b.t);
     }
     EXPECT_LT(s8.nodes, s4.nodes);
+}
+
+// ---------------------------------------------------------------- coordinate range (math/limits.hpp)
+
+namespace {
+
+/// Expects `f` to throw std::domain_error whose message contains every piece of `says`.
+template <class F>
+void expect_range_error(F&& f, std::initializer_list<const char*> says) {
+    try {
+        f();
+        ADD_FAILURE() << "accepted; expected an error naming " << *says.begin();
+    } catch (const std::domain_error& e) {
+        for (const char* s : says) EXPECT_NE(std::string(e.what()).find(s), std::string::npos) << e.what();
+    }
+}
+
+/// One triangle in the z = `z` plane spanning ±`size` around (cx, cy).
+Mesh one_triangle(float cx, float cy, float z, float size) {
+    Mesh m;
+    m.positions = {{cx - size, cy - size, z}, {cx + size, cy - size, z}, {cx, cy + size, z}};
+    m.triangles = {{{0, 1, 2}}};
+    return m;
+}
+
+}  // namespace
+
+TEST(CoordinateRange, TreesRejectVerticesBeyondTheBoundByName) {
+    Mesh m = make_random_soup(50, 3, 0.1f);
+    m.positions.push_back({0.0f, 0.0f, -1e14f});
+    m.triangles.push_back({{0, 1, static_cast<std::uint32_t>(m.positions.size() - 1)}});
+    const std::size_t bad = m.positions.size() - 1;
+    const std::string vertex = "vertex " + std::to_string(bad) + " coordinate z = -1e+14";
+    expect_range_error([&] { build_bvh(m); }, {vertex.c_str(), "2^32"});
+    expect_range_error([&] { (void)primitive_refs(m); }, {vertex.c_str()});
+    BuildOptions o;
+    for (const auto b : {BuildOptions::Builder::sah, BuildOptions::Builder::pairwise, BuildOptions::Builder::sortaxis,
+                         BuildOptions::Builder::ploc}) {
+        o.builder = b;
+        expect_range_error([&] { build_bvh(m, o); }, {vertex.c_str()});
+    }
+    // the bound itself is inside; one float beyond it is not
+    Mesh edge = one_triangle(0.0f, 0.0f, kMaxCoordinate, 1e6f);
+    EXPECT_NO_THROW(build_bvh(edge));
+    edge.positions[2].y = -next_float_up(kMaxCoordinate);
+    expect_range_error([&] { build_bvh(edge); }, {"vertex 2 coordinate y = -4.29496781e+09"});
+    // non-finite vertices stay allowed (their triangles are never hit)
+    Mesh nan = one_triangle(0.0f, 0.0f, 1.0f, 1.0f);
+    nan.positions[1].x = std::numeric_limits<float>::quiet_NaN();
+    nan.positions[2].z = -kInf;
+    EXPECT_NO_THROW(build_bvh(nan));
+}
+
+/// At the bound, through the tree: a far triangle is hit where it is.
+TEST(CoordinateRange, TreesAtTheBoundAnswerRight) {
+    const float far = kMaxCoordinate, size = 0x1p30f;
+    const Mesh m = one_triangle(-far + size, far - size, -far, size);
+    const Bvh bvh = build_bvh(m);
+    // from the opposite corner of the allowed cube, a direction of 2^-16
+    const Ray r{vec3(far, -far, far), 0.0f, vec3(-2.0f * far + size, 2.0f * far - size, -2.0f * far) * 0x1p-49f, kInf};
+    ASSERT_TRUE(ray_in_range(r)) << ray_range_error(r);
+    const Hit h = intersect_closest(m, bvh, r);
+    ASSERT_TRUE(h.valid());
+    EXPECT_NEAR(h.t, 0x1p49f, 0x1p49f * 1e-6f);  // the target point is at t = 2^49
+    EXPECT_NEAR(h.u, 0.25f, 1e-5f);
+    EXPECT_NEAR(h.v, 0.5f, 1e-5f);
+    EXPECT_TRUE(intersect_any(m, bvh, r));
+}
+
+TEST(CoordinateRange, SceneRejectsObjectsMovesAndInstancesBeyondTheBound) {
+    Scene s;
+    expect_range_error([&] { s.add_object(one_triangle(0.0f, 0.0f, 5e20f, 1.0f)); },
+                       {"Scene::add_object", "coordinate z = 5.0000001e+20"});
+    EXPECT_TRUE(s.objects().empty());
+    const std::uint32_t stat = s.add_object(one_triangle(0.0f, 0.0f, kMaxCoordinate, 1.0f));
+    const std::uint32_t dyn = s.add_object(one_triangle(0.0f, 0.0f, 0.0f, 1.0f), ObjectKind::dynamic);
+    s.add_instance(stat);
+    const std::uint32_t moved = s.add_instance(dyn);
+    EXPECT_NO_THROW(s.update_top_level());  // an object at the bound passes, padding and all
+    const Ray down{vec3(0.0f, 0.0f, 10.0f), 0.0f, vec3(0, 0, -1), kInf};
+    ASSERT_EQ(s.intersect_closest(down).inst, moved);
+
+    // an instance placed beyond the bound: rejected, naming the instance
+    s.set_transform(moved, glm::translate(mat4(1.0f), vec3(3e14f, 0.0f, 0.0f)));
+    expect_range_error([&] { s.update_top_level(); }, {"instance 1", "on axis x", "2^32"});
+    s.set_transform(moved, mat4(1.0f));
+    s.update_top_level();
+
+    // positions set beyond it: rejected, nothing changed
+    std::vector<vec3> far = s.objects()[dyn].mesh.positions;
+    far[1].y = 1e30f;
+    expect_range_error([&] { s.set_positions(dyn, far); }, {"set_positions", "vertex 1 coordinate y = 1.00000002e+30"});
+    EXPECT_EQ(s.objects()[dyn].mesh.positions[1].y, -1.0f);
+    // moved beyond it: rejected, the object back at rest and consistent
+    s.move_vertices(dyn, [](const Vertex& v, std::uint32_t) { return Vertex{v.position + vec3(0.5f, 0.0f, 0.0f), {}, {}}; });
+    expect_range_error(
+        [&] { s.move_vertices(dyn, [](const Vertex& v, std::uint32_t i) { return Vertex{v.position * (i == 2 ? 1e13f : 1.0f), {}, {}}; }); },
+        {"move_vertices", "vertex 2 coordinate y = 9.99999983e+12"});
+    EXPECT_EQ(s.objects()[dyn].mesh.positions[0], vec3(-1.0f, -1.0f, 0.0f));
+    s.update_top_level();
+    const Hit h = s.intersect_closest(down);
+    EXPECT_EQ(h.inst, moved);
+    EXPECT_EQ(h.t, 10.0f);
+    EXPECT_EQ(h.prim, s.brute_force_closest(down).prim);
 }

@@ -1,11 +1,16 @@
 // Slab test, triangle tests, robust offset, SAH cost: hand-computed oracles.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "raykit.hpp"
+#include "raykit/math/limits.hpp"
 
 using namespace raykit;
 
@@ -254,4 +259,187 @@ TEST(Slab, SimdPathsEqualTheScalarTest) {
         }
     }
     EXPECT_EQ(disagreements, 0u);
+}
+
+// ---------------------------------------------------------------- coordinate range (math/limits.hpp)
+
+namespace {
+
+/// Wrong answers of each test (Watertight, MollerTrumbore, ThesisTest,
+/// Watertight4) against an oracle in long double computed from the same
+/// float inputs: hit/miss, and t within 1e-3 relative.
+struct RangeTally {
+    std::size_t rays = 0;
+    std::size_t wrong[4] = {};
+};
+
+/// Möller–Trumbore in long double (64-bit significand, range to 1e4932):
+/// 1 = hit (every barycentric weight >= 0.05, t > 0), 0 = miss (a weight
+/// <= -0.05 or t <= 0), -1 = too close to an edge or grazing to judge.
+int oracle_hit(const Ray& r, const vec3 (&p)[3], long double& t) {
+    using LD = long double;
+    LD e1[3], e2[3], s[3], d[3];
+    for (int a = 0; a < 3; ++a) {
+        e1[a] = LD(p[1][a]) - LD(p[0][a]);
+        e2[a] = LD(p[2][a]) - LD(p[0][a]);
+        s[a] = LD(r.org[a]) - LD(p[0][a]);
+        d[a] = r.dir[a];
+    }
+    const auto cross = [](const LD* x, const LD* y, LD* o) {
+        o[0] = x[1] * y[2] - x[2] * y[1];
+        o[1] = x[2] * y[0] - x[0] * y[2];
+        o[2] = x[0] * y[1] - x[1] * y[0];
+    };
+    const auto dot = [](const LD* x, const LD* y) { return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]; };
+    LD n[3], pv[3], qv[3];
+    cross(e1, e2, n);
+    const LD cosine = std::fabs(dot(n, d)) / std::sqrt(dot(n, n) * dot(d, d));
+    if (!(cosine >= 0.05L)) return -1;
+    cross(d, e2, pv);
+    const LD det = dot(e1, pv);
+    cross(s, e1, qv);
+    const LD u = dot(s, pv) / det, v = dot(d, qv) / det;
+    t = dot(e2, qv) / det;
+    const LD w = 1.0L - u - v, lo = std::min(u, std::min(v, w));
+    if (t <= 0.0L || lo <= -0.05L) return 0;
+    return lo >= 0.05L ? 1 : -1;
+}
+
+/// `n` seeded rays at magnitude M. layout 0: origin within 1 of 0, triangle
+/// vertices ~M from it; 1: origin and vertices anywhere in [-M, M]^3, the
+/// direction's largest component 2^k, k uniform in [-16, 16]; 2: origin at
+/// ~M, a triangle of size 1e-3·M at distance ~1e-3·M. Half the rays aim
+/// inside (weights >= 0.1), half outside (a weight <= -0.1).
+RangeTally range_oracle(double M, int layout, int n, std::uint64_t seed, bool thesis) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> U(-1.0, 1.0), P(0.0, 1.0);
+    std::uniform_int_distribution<int> K(-16, 16);
+    RangeTally tally;
+    for (int it = 0; it < n; ++it) {
+        const double mo = layout == 0 ? 1.0 : M, mr = layout == 2 ? 1e-3 * M : M;
+        vec3 o;
+        for (int a = 0; a < 3; ++a) o[a] = static_cast<float>(mo * U(rng));
+        vec3 p[3];
+        double c[3];
+        for (int a = 0; a < 3; ++a) c[a] = double(o[a]) + 1.5 * mr * U(rng);
+        for (auto& q : p)
+            for (int a = 0; a < 3; ++a)  // within [-M, M], as the rule asks
+                q[a] = static_cast<float>(std::clamp(layout == 1 ? M * U(rng) : c[a] + 0.5 * mr * U(rng), -M, M));
+        double b[3];
+        const bool inside = it % 2 == 0;
+        do {
+            b[0] = inside ? P(rng) : 2.0 * U(rng);
+            b[1] = inside ? P(rng) : 2.0 * U(rng);
+            b[2] = 1.0 - b[0] - b[1];
+        } while (inside ? std::min({b[0], b[1], b[2]}) < 0.1 : std::min({b[0], b[1], b[2]}) > -0.1);
+        double dd[3], big = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            dd[a] = b[0] * p[0][a] + b[1] * p[1][a] + b[2] * p[2][a] - double(o[a]);
+            big = std::max(big, std::fabs(dd[a]));
+        }
+        const double scale = (layout == 1 ? std::ldexp(1.0, K(rng)) : 1.0) / big;
+        const Ray r{o, 0.0f, vec3(dd[0] * scale, dd[1] * scale, dd[2] * scale), kInf};
+        EXPECT_TRUE(ray_in_range(r)) << ray_range_error(r);  // the rule is what is tested
+        for (const vec3& q : p)
+            for (int a = 0; a < 3; ++a) EXPECT_TRUE(coordinate_in_range(q[a])) << q[a];
+        long double t_true = 0.0L;
+        const int expect = oracle_hit(r, p, t_true);
+        if (expect < 0) continue;
+        ++tally.rays;
+        TriHit h[4]{};
+        bool got[4];
+        got[0] = Watertight::intersect(Watertight::prepare(r), p[0], p[1], p[2], r.tmin, r.tmax, h[0]);
+        got[1] = MollerTrumbore::intersect(MollerTrumbore::prepare(r), p[0], p[1], p[2], r.tmin, r.tmax, h[1]);
+        got[2] = ThesisTest::intersect(ThesisTest::prepare(r), p[0], p[1], p[2], r.tmin, r.tmax, h[2]);
+        TriangleBlock4 blk;
+        for (int l = 0; l < 4; ++l) blk.set(l, p[0], p[1], p[2], 0);
+        alignas(16) float t4[4], u4[4], v4[4];
+        got[3] = (Watertight4::intersect(Watertight4::prepare(r), blk, r.tmin, r.tmax, t4, u4, v4) & 1u) != 0;
+        h[3].t = t4[0];
+        for (int k = 0; k < 4; ++k) {
+            if (k == 2 && !thesis) continue;
+            // 1e-3: Möller–Trumbore's cancellation reaches 2e-4 on some judged
+            // rays at every scale (seen without FMA); overflow and underflow
+            // give inf, 0 or errors near 100%
+            const bool bad = got[k] != (expect == 1) ||
+                             (got[k] && !(std::fabs(static_cast<long double>(h[k].t) - t_true) <= 1e-3L * t_true));
+            tally.wrong[k] += bad;
+        }
+    }
+    return tally;
+}
+
+}  // namespace
+
+TEST(CoordinateRange, EveryTriangleTestAgreesWithALongDoubleOracleUpToTheBound) {
+    const char* const names[4] = {"Watertight", "MollerTrumbore", "ThesisTest", "Watertight4"};
+    const double mags[] = {1.0, 1e3, 1e6, 1e9, double(kMaxCoordinate)};
+    std::uint64_t seed = 2024;
+    for (const double M : mags)
+        for (int layout = 0; layout < 3; ++layout) {
+            // ThesisTest's fixed tolerance (1e-7 length^2) is meant for
+            // triangles of size >= ~1: layout 2 at M = 1 has size 1e-3
+            const bool thesis = !(layout == 2 && M < 1e3);
+            const RangeTally t = range_oracle(M, layout, 4000, ++seed, thesis);
+            EXPECT_GT(t.rays, 3000u) << "the oracle judged too few rays at " << M;
+            for (int k = 0; k < 4; ++k)
+                EXPECT_EQ(t.wrong[k], 0u) << names[k] << " at magnitude " << M << ", layout " << layout << " (" << t.rays
+                                          << " rays)";
+        }
+}
+
+TEST(CoordinateRange, RaysOutsideTheRuleAreRejectedByName) {
+    const Ray ok{vec3(kMaxCoordinate, -kMaxCoordinate, 0.0f), 0.0f, vec3(0.0f, kMinDirection, 0.0f), kInf};
+    EXPECT_TRUE(ray_in_range(ok));
+    EXPECT_NO_THROW(check_ray(ok));
+    EXPECT_EQ(ray_range_error(ok), "");
+    EXPECT_TRUE(ray_in_range(Ray{vec3(0.0f), 0.0f, vec3(-kMaxDirection, 1.0f, 0.0f), 1.0f}));
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const struct {
+        Ray r;
+        const char* says;
+    } bad[] = {
+        {{vec3(0.0f, 1e14f, 0.0f), 0.0f, vec3(0, 0, 1), kInf}, "origin y = 1e+14"},
+        {{vec3(next_float_up(kMaxCoordinate), 0.0f, 0.0f), 0.0f, vec3(0, 0, 1), kInf}, "origin x = 4.29496781e+09"},
+        {{vec3(0.0f, 0.0f, -kInf), 0.0f, vec3(0, 0, 1), kInf}, "origin z = -inf"},
+        {{vec3(nan, 0.0f, 0.0f), 0.0f, vec3(0, 0, 1), kInf}, "origin x = nan"},
+        {{vec3(0.0f), 0.0f, vec3(0.0f), kInf}, "largest |component| 0"},
+        {{vec3(0.0f), 0.0f, vec3(1e-20f, 0.0f, 0.0f), kInf}, "largest |component| 9.99999968e-21"},
+        {{vec3(0.0f), 0.0f, vec3(0.0f, 0.0f, 3e38f), kInf}, "largest |component| 3.00000001e+38"},
+        {{vec3(0.0f), 0.0f, vec3(0.0f, kInf, 1.0f), kInf}, "not finite"},
+        {{vec3(0.0f), nan, vec3(0, 0, 1), kInf}, "NaN"},
+        {{vec3(0.0f), 0.0f, vec3(0, 0, 1), nan}, "NaN"},
+    };
+    for (const auto& b : bad) {
+        EXPECT_FALSE(ray_in_range(b.r)) << b.says;
+        EXPECT_NE(ray_range_error(b.r).find(b.says), std::string::npos) << ray_range_error(b.r);
+        try {
+            check_ray(b.r);
+            ADD_FAILURE() << "accepted: " << b.says;
+        } catch (const std::domain_error& e) {
+            EXPECT_NE(std::string(e.what()).find(b.says), std::string::npos) << e.what();
+        }
+    }
+}
+
+TEST(CoordinateRange, CheckPositionsDrawsTheLineAtTheBoundAndLetsNonFiniteThrough) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float up = next_float_up(kMaxCoordinate);
+    std::vector<vec3> p = {{0.0f, -0.0f, 1e-45f}, {kMaxCoordinate, -kMaxCoordinate, nan}, {kInf, -kInf, -nan}};
+    EXPECT_NO_THROW(check_positions(p, "test"));
+    for (const float bad : {up, -up, 1e20f, -std::numeric_limits<float>::max()})
+        for (int a = 0; a < 3; ++a) {
+            std::vector<vec3> q = p;
+            q.push_back(vec3(0.0f));
+            q.back()[a] = bad;
+            try {
+                check_positions(q, "test");
+                ADD_FAILURE() << "accepted " << bad;
+            } catch (const std::domain_error& e) {
+                const std::string w = e.what();
+                EXPECT_EQ(w.rfind("test: vertex 3 coordinate ", 0), 0u) << w;
+                EXPECT_NE(w.find(std::string(1, "xyz"[a]) + " = "), std::string::npos) << w;
+            }
+            EXPECT_EQ(coordinate_in_range(bad), false);
+        }
 }

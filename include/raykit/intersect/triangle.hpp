@@ -18,9 +18,18 @@
 //
 // All three return no hit for degenerate (zero-area) triangles and for any
 // NaN/inf vertex. u, v are the barycentric weights of p1 and p2.
+//
+// Range: the answers are right only inside math/limits.hpp's rule (vertex
+// and origin coordinates within ±2^32, the direction's largest component in
+// [2^-16, 2^16]). Beyond it the float t numerators overflow: measured against
+// a long-double oracle, Watertight's t goes wrong from coordinates ~1e13 from
+// the origin and its hits from ~1e14; Möller–Trumbore reports hits at t = inf
+// from ~1e13. Trees refuse such meshes; callers check rays with check_ray.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 #include "raykit/math/ray.hpp"
@@ -159,7 +168,13 @@ struct ThesisTest {
     static RAYKIT_INLINE bool intersect(const RayData& d, const vec3& p0, const vec3& p1,
                                         const vec3& p2, float tmin, float tmax, TriHit& out) noexcept {
         const vec3 n = glm::cross(p1 - p0, p2 - p0);
-        const float len = std::sqrt(glm::dot(n, n));
+        const float len2 = glm::dot(n, n);
+        // |n|^2 leaves float range for edges beyond ~4e9 (every outside ray
+        // then "hit", nu being 0) or below ~1e-10: only then take it in double
+        const float len = len2 > 0.0f && len2 <= std::numeric_limits<float>::max()
+                              ? std::sqrt(len2)
+                              : static_cast<float>(std::min(std::sqrt(double(n.x) * n.x + double(n.y) * n.y + double(n.z) * n.z),
+                                                            double(std::numeric_limits<float>::max())));
         const float denom = glm::dot(n, d.dir);
         if (!(denom != 0.0f) || !(len > 0.0f)) return false;
         const float t = glm::dot(n, p0 - d.org) / denom;

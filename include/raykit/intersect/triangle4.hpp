@@ -15,6 +15,8 @@
 // and a mesh traced through blocks stays watertight (tested against the
 // scalar test on random, edge and vertex rays in tests/test_blocks.cpp).
 //
+// Being the scalar test, it shares its coordinate range (math/limits.hpp).
+//
 // With AVX the edge functions take one 4-lane double operation each; without
 // AVX (or with RAYKIT_NO_SIMD) the lanes run through the scalar test.
 //

@@ -39,6 +39,7 @@
 #include "raykit/bvh/wide.hpp"
 #include "raykit/intersect/triangle4.hpp"
 #include "raykit/math/hit.hpp"
+#include "raykit/math/limits.hpp"
 #include "raykit/scene/build.hpp"
 #include "raykit/scene/mesh.hpp"
 #include "raykit/util/parallel.hpp"
@@ -64,8 +65,10 @@ struct BlockBvhT {
         return tree.nodes.size() * sizeof(tree.nodes[0]) + blocks.size() * sizeof(TriangleBlock4);
     }
 
-    /// Blocks for `src`'s leaves, vertices from `mesh` (which `src` was built over).
+    /// Blocks for `src`'s leaves, vertices from `mesh` (which `src` was built
+    /// over). Throws std::domain_error for a vertex beyond ±2^32 (math/limits.hpp).
     static BlockBvhT make(const MeshView& mesh, const Tree& src, unsigned threads = 0) {
+        check_positions(mesh.positions, "raykit::BlockBvh::make");
         BlockBvhT b;
         b.tree.nodes = src.nodes;
         if constexpr (W != 2) b.tree.bounds = src.bounds;

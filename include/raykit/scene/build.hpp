@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "raykit/bvh/binned_sah.hpp"
+#include "raykit/math/limits.hpp"
 #include "raykit/scene/mesh.hpp"
 #include "raykit/util/parallel.hpp"
 
@@ -14,13 +15,16 @@ namespace raykit {
 
 /// Per-triangle boxes and centroids, as every builder takes them. Triangles
 /// with a non-finite vertex get an empty box and a NaN centroid (builders
-/// place them somewhere harmless; they can never be hit).
+/// place them somewhere harmless; they can never be hit). A finite vertex
+/// coordinate beyond ±2^32 throws std::domain_error (math/limits.hpp): the
+/// float triangle tests give wrong answers there.
 struct PrimitiveRefs {
     std::vector<AABB> boxes;
     std::vector<vec3> centers;
 };
 
 inline PrimitiveRefs primitive_refs(const MeshView& mesh, unsigned threads = 0) {
+    check_positions(mesh.positions, "raykit: mesh");
     PrimitiveRefs r;
     r.boxes.resize(mesh.size());
     r.centers.resize(mesh.size());

@@ -35,6 +35,13 @@
 //
 // Ties: smaller t wins, then the smaller instance, then the smaller triangle
 // (Hit::closer_than), whatever the tree.
+//
+// Range (math/limits.hpp): object vertices (add_object, move_vertices,
+// set_positions) and instance world boxes (update_top_level) beyond ±2^32
+// throw std::domain_error. Rays are traced in object space, so an instance
+// whose inverse transform magnifies (an object scaled down) maps world rays
+// to larger object-space origins and directions: keep those within the same
+// rule (check_ray on object_ray()); it is not checked per ray.
 #pragma once
 
 #include <algorithm>
@@ -49,6 +56,7 @@
 #include "raykit/bvh/refit.hpp"
 #include "raykit/bvh/traverse.hpp"
 #include "raykit/math/hit.hpp"
+#include "raykit/math/limits.hpp"
 #include "raykit/scene/build.hpp"
 #include "raykit/scene/mesh.hpp"
 #include "raykit/scene/trace.hpp"
@@ -184,6 +192,7 @@ public:
             for (int c = 0; c < 3; ++c)
                 if (t.v[c] >= mesh.positions.size())
                     throw std::invalid_argument("raykit::Scene::add_object: triangle vertex index out of range");
+        check_positions(mesh.positions, "raykit::Scene::add_object");
         SceneObject o;
         o.kind = kind;
         o.bvh = build_bvh<BinnedSahBuilder>(mesh, cfg);
@@ -222,7 +231,9 @@ public:
     /// Vertex stage of a dynamic object: vertex i becomes fn(rest[i], i)
     /// (a Vertex); positions (and normals/uvs where the mesh has them) are
     /// written, then the object's tree is refitted. Throws std::logic_error
-    /// for a static object.
+    /// for a static object, and std::domain_error when a moved position is
+    /// beyond ±2^32 (math/limits.hpp; the object is then put back to its rest
+    /// vertices, refitted, so it stays consistent).
     template <class Fn>
     void move_vertices(std::uint32_t object, Fn&& fn, unsigned threads = 0) {
         SceneObject& o = dynamic_object(object, "move_vertices");
@@ -233,15 +244,28 @@ public:
             if (!m.normals.empty()) m.normals[i] = v.normal;
             if (!m.texcoords.empty()) m.texcoords[i] = v.uv;
         });
+        try {
+            check_positions(m.positions, "raykit::Scene::move_vertices");
+        } catch (...) {
+            for (std::size_t i = 0; i < o.rest.size(); ++i) {
+                m.positions[i] = o.rest[i].position;
+                if (!m.normals.empty()) m.normals[i] = o.rest[i].normal;
+                if (!m.texcoords.empty()) m.texcoords[i] = o.rest[i].uv;
+            }
+            refit_object(object);
+            throw;
+        }
         refit_object(object);
     }
 
     /// Sets a dynamic object's current positions directly (one per vertex;
     /// e.g. read back from a device vertex stage) and refits its tree.
+    /// Throws (changing nothing) for a wrong count or a position beyond ±2^32.
     void set_positions(std::uint32_t object, const std::vector<vec3>& positions) {
         SceneObject& o = dynamic_object(object, "set_positions");
         if (positions.size() != o.mesh.positions.size())
             throw std::invalid_argument("raykit::Scene::set_positions: wrong vertex count");
+        check_positions(positions, "raykit::Scene::set_positions");
         o.mesh.positions = positions;
         refit_object(object);
     }
@@ -270,10 +294,26 @@ public:
         update_top_level(boxes, mode);
     }
     /// Same, from world boxes computed elsewhere (one per instance, e.g. from
-    /// root boxes refitted on a device).
+    /// root boxes refitted on a device). A box reaching beyond ±2^32 (plus
+    /// world_box()'s padding; math/limits.hpp) throws std::domain_error
+    /// naming its instance, leaving the tree as it was.
     void update_top_level(const std::vector<AABB>& world_boxes, TopLevelUpdate mode = TopLevelUpdate::rebuild) {
         if (world_boxes.size() != instances_.size())
             throw std::invalid_argument("raykit::Scene::update_top_level: one box per instance needed");
+        // world_box() pads by 2^-20 of the largest coordinate: an object at
+        // the bound under the identity must still pass
+        constexpr float kBoxLimit = kMaxCoordinate * (1.0f + 0x1p-18f);
+        for (std::size_t i = 0; i < world_boxes.size(); ++i) {
+            const AABB& b = world_boxes[i];
+            if (b.is_empty()) continue;
+            for (int a = 0; a < 3; ++a)
+                if (!(std::fabs(b.min[a]) <= kBoxLimit && std::fabs(b.max[a]) <= kBoxLimit))
+                    throw std::domain_error("raykit::Scene::update_top_level: instance " + std::to_string(i) +
+                                            " reaches " + std::to_string(std::fmax(std::fabs(b.min[a]), std::fabs(b.max[a]))) +
+                                            " on axis " + "xyz"[a] +
+                                            ", outside [-2^32, 2^32]: float ray/triangle tests give wrong answers there "
+                                            "(raykit/math/limits.hpp)");
+        }
         if (mode == TopLevelUpdate::refit && top_.prim_ids.size() == instances_.size() && !instances_.empty()) {
             refit(top_, [&](std::uint32_t i) { return world_boxes[i]; });
         } else {
