@@ -147,3 +147,15 @@ TEST(Rays, ReadRaysRefusesWhatIsNotARegularFile) {
 }
 
 }  // namespace
+
+// Issue 12, defect 8: rays the triangle tests could answer wrongly (math/limits.hpp) are refused
+// where they are read, naming the line, instead of tracing to a wrong hit or t = inf.
+TEST(Rays, RaysOutsideTheRangeRuleAreRefusedNamingTheLine) {
+    const std::string ok = "0 0 -5 0 0 1 0 inf\n";
+    EXPECT_EQ(raykit::parse_rays(ok, "r.txt").size(), 1u);
+    EXPECT_EQ(raykit::parse_rays("4294967296 0 0 -1 0 0 0 inf\n", "r.txt").size(), 1u);  // 2^32: inside
+    expect_rays_error(ok + "1e14 0 0 -1 0 0 0 inf\n", 2, "origin x = 1e+14");
+    expect_rays_error(ok + ok + "0 0 0 0 0 0 0 inf\n", 3, "direction");
+    expect_rays_error("0 0 0 0 0 1e-6 0 inf\n", 1, "direction");
+    expect_rays_error("0 0 0 0 1e30 0 0 inf\n", 1, "direction");
+}

@@ -8,6 +8,9 @@
 // Numbers follow the one rule of lexer.hpp (the same as OBJ and MTL): `1e-46`
 // becomes 0, `1e39` is an error naming the value. Only tmax may be infinite,
 // written `inf`, `+inf` or `infinity` (any case); NaN is an error everywhere.
+// Each ray must also keep math/limits.hpp's range rule (origin within ±2^32, the
+// direction's largest component in [2^-16, 2^16]): a ray outside it is an error
+// naming the line, since the triangle tests could answer it wrongly.
 //
 // It lived in the CLI's main file with its own number rule (std::from_chars),
 // where neither the fuzz target nor a test could link it. read_rays refuses what
@@ -23,6 +26,7 @@
 
 #include "raykit/io/lexer.hpp"
 #include "raykit/io/parse_error.hpp"
+#include "raykit/math/limits.hpp"
 #include "raykit/math/ray.hpp"
 
 namespace raykit {
@@ -84,6 +88,7 @@ inline std::vector<Ray> parse_rays(std::string_view text, const std::string& nam
         r.dir = vec3(f[3], f[4], f[5]);
         r.tmin = f[6];
         r.tmax = f[7];
+        if (!ray_in_range(r)) throw ParseError(name_for_errors, line, ray_range_error(r));
         rays.push_back(r);
     }
     return rays;
