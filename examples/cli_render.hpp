@@ -195,6 +195,7 @@ inline std::string count_problem(const std::string& opt, const std::string& s, s
     const auto [q, ed] = std::from_chars(v.data(), v.data() + v.size(), d);
     if (v.empty() || q != v.data() + v.size() || (ed != std::errc() && ed != std::errc::result_out_of_range))
         return opt + " expects a number, got '" + s + "'";
+    if (ed == std::errc::result_out_of_range) return range;  // "1e400": from_chars left d at 0
     if (std::isnan(d) || (std::isfinite(d) && d != std::floor(d))) return opt + " must be an integer, got '" + s + "'";
     if (!(d >= double(lo) && d <= double(hi))) return range;
     out = static_cast<std::uint64_t>(d);

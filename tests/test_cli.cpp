@@ -297,7 +297,7 @@ TEST(CliBounds, ThreadCountsAboveTheLimitAreUsageErrors) {
     const std::string png = (tmpdir() / "bounds_threads.png").string();
     for (const std::string& cmd : {"info " + s, "check " + s + " --rays 10", "trace " + s + " " + rays.string() + " " +
                                   hits.string(), "render " + s + " " + png + " --width 8 --height 8 --quiet"})
-        for (const char* t : {"4294967295", "2147483648", "1025", "-1", "99999999999999999999"})
+        for (const char* t : {"4294967295", "2147483648", "1025", "-1", "99999999999999999999", "1e400", "2e3"})
             expect_one_error_line(run_bounded(cmd + " --threads " + t), 2, "--threads must be in 0..1024",
                                   cmd + " --threads " + t);
     EXPECT_EQ(run_bounded("info " + s + " --threads 1024").code, 0);
