@@ -21,6 +21,13 @@
 // Defaults: no --camera frames the whole scene (bounding-sphere fit, looking from front-right-
 // above); no --light/--sun places raykit::default_key_light (a white point light above-left of
 // the camera).
+//
+// Bounds (issue 12): every numeric flag has a range and anything outside it is a usage error
+// before any work. The image is at most 16,777,216 pixels (4096 x 4096): its float buffer is
+// 16 bytes a pixel, so that is 256 MiB, and 65536 x 65536 asked for 64 GiB and ended in a bare
+// std::bad_alloc. --ao-samples is capped at 4096 like --spp at 65536 (4e9 ran for minutes).
+// OUT.png and --pfm are checked writable (folder exists, not a folder themselves) before the
+// scene is loaded, so a bad --pfm no longer leaves a PNG behind.
 #pragma once
 
 #include <algorithm>
@@ -30,6 +37,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -60,27 +68,28 @@ inline const char* raykit_cli_render_usage() {
     return R"(usage:
   raykit render SCENE.obj OUT.png [options]
 
-  --width W  --height H     image size (default 640 x 480)
-  --spp N                   samples per pixel, stratified and jittered (default 1)
-  --max-depth D             reflection/refraction bounces (default 5)
+  --width W  --height H     image size (default 640 x 480; each 1..65536, at most 16777216 pixels)
+  --spp N                   samples per pixel, stratified and jittered, 1..65536 (default 1)
+  --max-depth D             reflection/refraction bounces, 0..1000 (default 5)
   --shader NAME             whitted (default), normals, depth, ao, debug-cost
   --camera EX EY EZ TX TY TZ  eye and target (default: frame the whole scene)
   --up UX UY UZ             camera up vector (default 0 1 0)
-  --fov DEG                 vertical field of view (default 45)
-  --light X Y Z R G B       point light (repeatable; default: a key light above-left of the camera)
+  --fov DEG                 vertical field of view, in (0, 180) (default 45)
+  --light X Y Z R G B       point light (repeatable; default: a key light above-left of the camera);
+                            colours (here, --sun, --ambient, --background) are finite and >= 0
   --sun DX DY DZ R G B      directional light travelling along D (repeatable)
   --ambient R G B           ambient light (default 0.1 0.1 0.1)
   --background R G B        colour of rays that miss (default 0 0 0)
   --no-shadows              no shadow rays
   --filter NAME             texture filter: bilinear (default), nearest
-  --ao-samples N            ao: rays per sample (default 16)
-  --ao-radius R             ao: occlusion distance (default 0.1 x scene diagonal)
+  --ao-samples N            ao: rays per sample, 1..4096 (default 16)
+  --ao-radius R             ao: occlusion distance, > 0 (default 0.1 x scene diagonal)
   --seed S                  random seed (default 0)
   --no-jitter               samples at stratum centres (1 spp = pixel centres)
-  --threads T               worker threads, 0 = all (default 0)
+  --threads T               worker threads, 0..1024, 0 = all (default 0)
   --device cpu|cl           renderer (default cpu; cl: the OpenCL device, same image as the CPU)
   --builder NAME            BVH builder: sah (default), pairwise, sortaxis, ploc
-  --leaf-size N             largest BVH leaf (default 8)
+  --leaf-size N             largest BVH leaf, >= 1 (default 8)
   --no-leaf-triangles       trace through the index triangles instead of the leaf-order copy
   --pfm OUT.pfm             also write linear float RGB (PFM)
   --alpha                   write coverage as PNG alpha
@@ -164,6 +173,81 @@ inline vec3 vec3_at(const std::string& opt, const std::vector<std::string>& v, s
     return vec3(number<float>(opt, v[first]), number<float>(opt, v[first + 1]), number<float>(opt, v[first + 2]));
 }
 
+/// Largest image `render` makes, in pixels (see the header comment).
+inline constexpr std::uint64_t kMaxPixels = std::uint64_t(1) << 24;
+
+/// Parses `s`, the value of `opt`, as an integer in [lo, hi] into `out`; returns why it is not one
+/// ("" when it is). Accepts "+N" and integral exponent forms ("1e6"); a negative or huge value is
+/// out of range, never wrapped.
+inline std::string count_problem(const std::string& opt, const std::string& s, std::uint64_t lo, std::uint64_t hi,
+                                 std::uint64_t& out) {
+    const std::string range = opt + " must be in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got '" + s + "'";
+    std::string_view v(s);
+    if (!v.empty() && v[0] == '+') v.remove_prefix(1);
+    std::uint64_t u = 0;
+    const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), u);
+    if (!v.empty() && p == v.data() + v.size() && ec == std::errc()) {
+        out = u;
+        return u < lo || u > hi ? range : "";
+    }
+    if (!v.empty() && p == v.data() + v.size() && ec == std::errc::result_out_of_range) return range;
+    double d = 0.0;  // "-3", "1e12", "2.5", "inf"
+    const auto [q, ed] = std::from_chars(v.data(), v.data() + v.size(), d);
+    if (v.empty() || q != v.data() + v.size() || (ed != std::errc() && ed != std::errc::result_out_of_range))
+        return opt + " expects a number, got '" + s + "'";
+    if (ed == std::errc::result_out_of_range) return range;  // "1e400": from_chars left d at 0
+    if (std::isnan(d) || (std::isfinite(d) && d != std::floor(d))) return opt + " must be an integer, got '" + s + "'";
+    if (!(d >= double(lo) && d <= double(hi))) return range;
+    out = static_cast<std::uint64_t>(d);
+    return out < lo || out > hi ? range : "";
+}
+
+/// Integer option `opt` in [lo, hi] (its last value), `def` when absent.
+template <class T>
+T count_or(const Parsed& p, const std::string& opt, T def, std::uint64_t lo, std::uint64_t hi) {
+    const auto* v = p.last(opt);
+    if (!v) return def;
+    std::uint64_t out = 0;
+    if (std::string why = count_problem(opt, (*v)[0], lo, hi, out); !why.empty()) throw RaykitCliRenderUsageError(why);
+    return static_cast<T>(out);
+}
+
+/// A colour given on the command line: finite and not negative.
+inline vec3 colour_at(const std::string& opt, const std::vector<std::string>& v, std::size_t first) {
+    const vec3 c = vec3_at(opt, v, first);
+    if (!(c.x >= 0.0f && c.y >= 0.0f && c.z >= 0.0f))
+        throw RaykitCliRenderUsageError(opt + " colour must be finite and >= 0, got " + v[first] + " " + v[first + 1] +
+                                        " " + v[first + 2]);
+    return c;
+}
+
+/// Throws std::runtime_error unless `path` can be written: its folder exists and is writable,
+/// and `path` is not a folder (issue 12: every output is checked before any work).
+inline void check_writable(const std::filesystem::path& path) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (path.empty()) throw std::runtime_error("empty output file name");
+    if (fs::is_directory(path, ec)) throw std::runtime_error("cannot write " + path.string() + ": it is a folder");
+    const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+    if (!fs::is_directory(dir, ec))
+        throw std::runtime_error("cannot write " + path.string() + ": folder " + dir.string() + " does not exist");
+#if defined(__unix__) || defined(__APPLE__)
+    if (::access(dir.c_str(), W_OK | X_OK) != 0)
+        throw std::runtime_error("cannot write " + path.string() + ": folder " + dir.string() + " is not writable");
+    if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
+        throw std::runtime_error("cannot write " + path.string() + ": permission denied");
+#endif
+}
+
+/// Throws std::runtime_error when `path` exists but is not a regular file (a folder, /dev/zero, a
+/// pipe): such a scene never ended or failed with a bare bad_alloc. A missing file is the loader's.
+inline void check_regular_input(const std::filesystem::path& path) {
+    std::error_code ec;
+    const auto st = std::filesystem::status(path, ec);
+    if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
+        throw std::runtime_error(path.string() + ": not a regular file");
+}
+
 /// Progress bar on stderr: appears once a render has run for a second, updates at most 10 times
 /// a second, only when stderr is a terminal.
 struct ProgressBar {
@@ -234,33 +318,70 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
 #endif
     if (device != "cpu" && device != "cl") throw RaykitCliRenderUsageError("unknown --device '" + device + "' (known: cpu, cl)");
 
-    const auto width = cr::number_or<std::uint32_t>(p, "--width", 640);
-    const auto height = cr::number_or<std::uint32_t>(p, "--height", 480);
-    if (width == 0 || height == 0 || width > 65536 || height > 65536)
-        throw RaykitCliRenderUsageError("--width and --height must be in 1..65536");
+    const auto width = cr::count_or<std::uint32_t>(p, "--width", 640, 1, 65536);
+    const auto height = cr::count_or<std::uint32_t>(p, "--height", 480, 1, 65536);
+    if (std::uint64_t(width) * height > cr::kMaxPixels)
+        throw RaykitCliRenderUsageError("the image must be at most " + std::to_string(cr::kMaxPixels) + " pixels, " +
+                                        std::to_string(width) + " x " + std::to_string(height) + " is " +
+                                        std::to_string(std::uint64_t(width) * height));
     RenderSettings set;
-    set.spp = cr::number_or<unsigned>(p, "--spp", 1);
-    if (set.spp == 0 || set.spp > 65536) throw RaykitCliRenderUsageError("--spp must be in 1..65536");
-    set.shade.max_depth = cr::number_or<unsigned>(p, "--max-depth", 5);
-    if (set.shade.max_depth > 1000) throw RaykitCliRenderUsageError("--max-depth must be at most 1000");
+    set.spp = cr::count_or<unsigned>(p, "--spp", 1, 1, 65536);
+    set.shade.max_depth = cr::count_or<unsigned>(p, "--max-depth", 5, 0, 1000);
     try {
         if (auto* v = p.last("--shader")) set.shade.shader = parse_shader((*v)[0]);
         if (auto* v = p.last("--filter")) set.shade.filter = parse_texture_filter((*v)[0]);
     } catch (const std::invalid_argument& e) {
         throw RaykitCliRenderUsageError(e.what());
     }
-    if (auto* v = p.last("--ambient")) set.shade.ambient = cr::vec3_at("--ambient", *v, 0);
-    if (auto* v = p.last("--background")) set.shade.background = cr::vec3_at("--background", *v, 0);
+    if (auto* v = p.last("--ambient")) set.shade.ambient = cr::colour_at("--ambient", *v, 0);
+    if (auto* v = p.last("--background")) set.shade.background = cr::colour_at("--background", *v, 0);
     set.shade.shadows = !p.has("--no-shadows");
-    set.shade.ao_samples = cr::number_or<unsigned>(p, "--ao-samples", 16);
-    set.shade.ao_radius = cr::number_or<float>(p, "--ao-radius", 0.0f);
-    set.seed = cr::number_or<std::uint64_t>(p, "--seed", 0);
+    set.shade.ao_samples = cr::count_or<unsigned>(p, "--ao-samples", 16, 1, 4096);
+    if (auto* v = p.last("--ao-radius")) {
+        // 0 stays the library's "0.1 x scene diagonal": only the default may mean that
+        const std::string& r = (*v)[0];
+        float radius = 0.0f;
+        const auto [q, ec] = std::from_chars(r.data(), r.data() + r.size(), radius);
+        if (ec != std::errc() || q != r.data() + r.size() || !std::isfinite(radius) || !(radius > 0.0f))
+            throw RaykitCliRenderUsageError("--ao-radius must be a finite number > 0, got '" + r + "'");
+        set.shade.ao_radius = radius;
+    }
+    set.seed = cr::count_or<std::uint64_t>(p, "--seed", 0, 0, std::numeric_limits<std::uint64_t>::max());
     set.jitter = !p.has("--no-jitter");
-    set.threads = cr::number_or<unsigned>(p, "--threads", 0);
+    set.threads = cr::count_or<unsigned>(p, "--threads", 0, 0, kMaxThreads);
     set.time_stages = p.has("--profile");
     const bool quiet = p.has("--quiet");
     const float fov = cr::number_or<float>(p, "--fov", 45.0f);
     if (!(fov > 0.0f && fov < 180.0f)) throw RaykitCliRenderUsageError("--fov must be in (0, 180)");
+    for (const auto& [k, v] : p.opts) {
+        if (k == "--light") (void)cr::colour_at(k, v, 3);
+        if (k == "--sun") {
+            const vec3 d = cr::vec3_at(k, v, 0);
+            if (!(glm::length(d) > 0.0f) || !std::isfinite(glm::length(d)))
+                throw RaykitCliRenderUsageError("--sun direction must be non-zero with a finite length");
+            (void)cr::colour_at(k, v, 3);
+        }
+    }
+    if (auto* v = p.last("--up")) {
+        const vec3 u = cr::vec3_at("--up", *v, 0);
+        if (!(glm::length(u) > 0.0f) || !std::isfinite(glm::length(u)))
+            throw RaykitCliRenderUsageError("--up must be non-zero with a finite length");
+    }
+    // a camera made from flags alone is checked here, where its errors are usage errors
+    if (auto* v = p.last("--camera")) {
+        Camera c;
+        c.position = cr::vec3_at("--camera", *v, 0);
+        c.target = cr::vec3_at("--camera", *v, 3);
+        if (auto* u = p.last("--up")) c.up = cr::vec3_at("--up", *u, 0);
+        c.vfov_degrees = fov;
+        c.width = width;
+        c.height = height;
+        try {
+            (void)c.frame();
+        } catch (const std::invalid_argument& e) {
+            throw RaykitCliRenderUsageError(std::string("--camera/--up: ") + e.what());
+        }
+    }
 
     BuildOptions build;
     try {
@@ -268,9 +389,13 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
     } catch (const std::invalid_argument& e) {
         throw RaykitCliRenderUsageError(e.what());
     }
-    build.max_leaf_size = cr::number_or<unsigned>(p, "--leaf-size", 8);
-    if (build.max_leaf_size < 1) throw RaykitCliRenderUsageError("--leaf-size must be at least 1");
+    build.max_leaf_size = cr::count_or<unsigned>(p, "--leaf-size", 8, 1, std::numeric_limits<unsigned>::max());
     build.threads = set.threads;
+
+    // ---- every output writable, the scene a file, before any work
+    cr::check_writable(p.pos[1]);
+    if (auto* v = p.last("--pfm")) cr::check_writable((*v)[0]);
+    cr::check_regular_input(p.pos[0]);
 
     // ---- load, build, materials
     auto t0 = Clock::now();
@@ -296,15 +421,13 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
     try {
         (void)cam.frame();
     } catch (const std::invalid_argument& e) {
-        throw RaykitCliRenderUsageError(e.what());
+        // the flags were checked above: what fails now comes from the scene (e.g. bounds so
+        // large that the framing camera is not finite), not a bad flag, so no usage text
+        throw std::runtime_error(std::string("cannot frame ") + p.pos[0] + ": " + e.what());
     }
     for (const auto& [k, v] : p.opts) {
         if (k == "--light") rs.lights.push_back(Light::point(cr::vec3_at(k, v, 0), cr::vec3_at(k, v, 3)));
-        if (k == "--sun") {
-            const vec3 d = cr::vec3_at(k, v, 0);
-            if (!(glm::length(d) > 0.0f)) throw RaykitCliRenderUsageError("--sun direction must not be zero");
-            rs.lights.push_back(Light::directional(d, cr::vec3_at(k, v, 3)));
-        }
+        if (k == "--sun") rs.lights.push_back(Light::directional(cr::vec3_at(k, v, 0), cr::vec3_at(k, v, 3)));
     }
     if (rs.lights.empty()) rs.lights.push_back(default_key_light(cam));
 

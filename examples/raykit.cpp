@@ -9,7 +9,18 @@
 //   raykit render SCENE.obj OUT.png [...]
 //
 // Every error ends with a one-line reason on stderr and a non-zero exit:
-// 2 for bad usage, 1 for anything else.
+// 2 for bad usage (after the usage text), 1 for anything else (no usage text:
+// a library error is never taken for a bad flag). Out of memory is one line
+// too, "raykit: error: out of memory (...)", never a bare std::bad_alloc.
+//
+// Bounds (issue 12): every numeric flag has a range, checked before any work;
+// outputs are checked writable and scenes regular files before anything is
+// loaded. check --rays is at most 1,000,000 (its time is rays x triangles, the
+// brute-force reference: 100,000 rays on 1,280 triangles took 2.4 s here) and
+// generate --tris at most 1,000,000 (soup, the largest file per triangle:
+// 139 MB written in 4 s on a loaded 2-core machine; 10^7 took 76 s and 1.4 GB).
+// --threads is at most raykit::kMaxThreads (1024); 2^31 once overflowed a
+// shift in the binned SAH and hung.
 #include <charconv>
 #include <chrono>
 #include <cstdio>
@@ -17,6 +28,8 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <limits>
+#include <new>
 #include <random>
 #include <sstream>
 #include <string>
@@ -50,27 +63,29 @@ constexpr const char* kUsage = R"(usage:
   raykit info SCENE.obj [--builder NAME] [--window W] [--axis A] [--metric M] [--pairing P] [--radius R] [--optimize on|off]
                         [--leaf N] [--leaf-block B] [--threads T] [--json]
   raykit info --device         lists OpenCL platforms and devices, and which one raykit picks and why
-  raykit animate-test SCENE.obj [--frames N]   a "wave" vertex hook moves a dynamic copy each frame: refit, TLAS, trace, device and CPU
+  raykit animate-test SCENE.obj [--frames N]   a "wave" vertex hook moves a dynamic copy each frame (N in 1..1000): refit, TLAS, trace, device and CPU
   raykit trace SCENE.obj RAYS.txt HITS.txt [--builder NAME] [--any-hit] [--test watertight|mt|thesis] [--threads T] [--device cpu|cl]
   raykit check SCENE.obj [--rays N] [--seed S] [--builder NAME] [--test watertight|mt|thesis] [--threads T]
   raykit generate torus|icosphere|soup OUT.obj [--tris N] [--seed S]
+                 N in 1..1000000 (default 100000): about N for the torus, the largest icosphere level within N
   raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu|cl]
   raykit animate REF.smd ANIM.smd OUT_%03d.png [--scene STATIC.obj] [--frames N] [--fps F] [--device cpu|cl]
                  ...render flags (raykit animate alone lists all options)
   raykit render SCENE.obj OUT.png [--width W] [--height H] [--spp N] [--max-depth D] [--shader NAME]
                 [--camera EX EY EZ TX TY TZ] [--up UX UY UZ] [--fov DEG] [--light X Y Z R G B]... (raykit render alone lists all options)
 
+  --rays N         check: random rays, 1..1000000 (default 2000)
   --builder NAME   BVH builder: sah (binned SAH, default), pairwise, sortaxis, ploc
   --leaf N         largest leaf (primitives), default 8
   --leaf-block B   SAH counts leaves in blocks of B primitives (1 default; 4 with --leaf 12 suits
                    the CPU trace, which tests leaves 4 triangles at a time)
-  --window W       sortaxis: candidates per element, default 2 (the thesis used 6)
+  --window W       sortaxis: candidates per element, 1..4096, default 2 (the thesis used 6)
   --axis A         sortaxis: x | longest | morton (default)
   --metric M       pairwise: centre (default) | area; sortaxis: area (default) | centre
   --pairing P      sortaxis: mutual (default: mutual nearest neighbours) | greedy (the thesis's rule)
-  --radius R       ploc: neighbours searched each way, default 4
+  --radius R       ploc: neighbours searched each way, 1..1024, default 4
   --optimize on|off  sortaxis, ploc: post-pass (reinsertion + treelets); default on for ploc, off for sortaxis
-  --threads T      worker threads, 0 = all (default)
+  --threads T      worker threads, 0..1024, 0 = all (default)
   --test NAME      ray/triangle test: watertight (default), mt (Moller-Trumbore), thesis
 skin: prints the skinned position of every triangle corner (triangles in file order), one "x y z" per line;
       FRAME may be fractional; without ANIM, the bind pose.
@@ -118,7 +133,30 @@ struct Args {
         if (ec != std::errc() || p != e) throw UsageError(k + " expects a number, got '" + it->second + "'");
         return v;
     }
+    /// Integer option `k` in [lo, hi], `def` when absent; anything else is a UsageError naming the range.
+    template <class T>
+    T count(const std::string& k, T def, std::uint64_t lo, std::uint64_t hi) const {
+        auto it = opt.find(k);
+        if (it == opt.end()) return def;
+        std::uint64_t v = 0;
+        if (std::string why = raykit::detail::cli_render::count_problem(k, it->second, lo, hi, v); !why.empty())
+            throw UsageError(why);
+        return static_cast<T>(v);
+    }
 };
+
+/// Most rays `check` makes (see the header comment).
+constexpr std::uint64_t kMaxCheckRays = 1'000'000;
+/// Most triangles `generate` makes (see the header comment).
+constexpr std::uint64_t kMaxGenerateTris = 1'000'000;
+/// Most frames `animate-test` runs.
+constexpr std::uint64_t kMaxAnimateTestFrames = 1000;
+
+/// Every output checked writable and every input a regular file, before any work.
+void check_files(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs) {
+    for (const std::string& o : outputs) raykit::detail::cli_render::check_writable(o);
+    for (const std::string& i : inputs) raykit::detail::cli_render::check_regular_input(i);
+}
 
 /// Options every command that builds a tree takes.
 const std::vector<std::string> kTreeFlags = {"--builder", "--leaf",    "--leaf-block", "--threads", "--window",
@@ -145,15 +183,13 @@ BuildOptions tree_options(const Args& a) {
     } catch (const std::invalid_argument& e) {
         throw UsageError(e.what());
     }
-    o.max_leaf_size = a.number<unsigned>("--leaf", 8);
+    constexpr unsigned kMaxUnsigned = std::numeric_limits<unsigned>::max();
+    o.max_leaf_size = a.count<unsigned>("--leaf", 8, 1, kMaxUnsigned);
     o.leaf_block = a.number<unsigned>("--leaf-block", 1);
     if (!valid_leaf_block(o.leaf_block)) throw UsageError("--leaf-block must be 1, 2, 4, 8 or 16");
-    o.threads = a.number<unsigned>("--threads", 0);
-    o.window = a.number<unsigned>("--window", o.window);
-    o.radius = a.number<unsigned>("--radius", o.radius);
-    if (o.max_leaf_size < 1) throw UsageError("--leaf must be at least 1");
-    if (o.window < 1) throw UsageError("--window must be at least 1");
-    if (o.radius < 1 || o.radius > 1024) throw UsageError("--radius must be in 1..1024");
+    o.threads = a.count<unsigned>("--threads", 0, 0, kMaxThreads);
+    o.window = a.count<unsigned>("--window", o.window, 1, 4096);
+    o.radius = a.count<unsigned>("--radius", o.radius, 1, 1024);
     return o;
 }
 
@@ -187,6 +223,7 @@ int cmd_info(int argc, char** argv) {
     }
     if (a.pos.size() != 1) throw UsageError("info takes one SCENE.obj");
     const BuildOptions t = tree_options(a);
+    check_files({a.pos[0]}, {});
     const Mesh mesh = load_scene(a.pos[0]);
     const auto t0 = Clock::now();
     const Bvh bvh = build_tree(mesh, t);
@@ -238,6 +275,7 @@ int cmd_trace(int argc, char** argv) {
     const std::string device = a.get("--device", "cpu");
     if (device != "cpu" && device != "cl") throw UsageError("--device must be cpu or cl");
     if (device == "cl" && tk != TestKind::watertight) throw UsageError("--device cl traces with the watertight test only");
+    check_files({a.pos[0], a.pos[1]}, {a.pos[2]});
     const Mesh mesh = load_scene(a.pos[0]);
     const std::vector<Ray> rays = read_rays(a.pos[1]);
     const Bvh bvh = build_tree(mesh, t);
@@ -297,8 +335,9 @@ int cmd_check(int argc, char** argv) {
     if (a.pos.size() != 1) throw UsageError("check takes one SCENE.obj");
     const BuildOptions t = tree_options(a);
     const TestKind tk = test_kind(a);
-    const auto n = a.number<std::size_t>("--rays", 2000);
-    const auto seed = a.number<std::uint64_t>("--seed", 1);
+    const auto n = a.count<std::size_t>("--rays", 2000, 1, kMaxCheckRays);
+    const auto seed = a.count<std::uint64_t>("--seed", 1, 0, std::numeric_limits<std::uint64_t>::max());
+    check_files({a.pos[0]}, {});
     const Mesh mesh = load_scene(a.pos[0]);
     const Bvh bvh = build_tree(mesh, t);
     const PrimitiveRefs refs = primitive_refs(mesh);
@@ -357,9 +396,9 @@ int cmd_check(int argc, char** argv) {
 int cmd_animate_test(int argc, char** argv) {
     Args a(argc, argv, 2, {"--frames"}, {});
     if (a.pos.size() != 1) throw UsageError("animate-test takes one SCENE.obj");
-    const int frames = a.number<int>("--frames", 10);
-    if (frames < 1) throw UsageError("--frames must be at least 1");
+    const int frames = a.count<int>("--frames", 10, 1, kMaxAnimateTestFrames);
 #if RAYKIT_CLI_HAVE_CL
+    check_files({a.pos[0]}, {});
     return raykit_cli_animate_test(load_scene(a.pos[0]), frames);
 #else
     throw std::runtime_error("this raykit was built without OpenCL (install ocl-icd-opencl-dev, opencl-clhpp-headers and pocl-opencl-icd, then rebuild)");
@@ -369,23 +408,16 @@ int cmd_animate_test(int argc, char** argv) {
 int cmd_generate(int argc, char** argv) {
     Args a(argc, argv, 2, {"--tris", "--seed"}, {});
     if (a.pos.size() != 2) throw UsageError("generate takes KIND OUT.obj");
-    const auto tris = a.number<std::size_t>("--tris", 100000);
-    const auto seed = a.number<std::uint64_t>("--seed", 1);
+    const auto tris = a.count<std::size_t>("--tris", 100000, 1, kMaxGenerateTris);
+    const auto seed = a.count<std::uint64_t>("--seed", 1, 0, std::numeric_limits<std::uint64_t>::max());
+    const std::string& kind = a.pos[0];
+    if (kind != "torus" && kind != "icosphere" && kind != "soup")
+        throw UsageError("unknown mesh kind '" + kind + "' (known: torus, icosphere, soup)");
+    check_files({}, {a.pos[1]});
     Mesh m;
-    if (a.pos[0] == "torus") {
-        m = make_bumpy_torus(tris);
-    } else if (a.pos[0] == "icosphere") {
-        int levels = 0;
-        while (20ull << (2 * (levels + 1))) {
-            if ((20ull << (2 * (levels + 1))) > tris) break;
-            ++levels;
-        }
-        m = make_icosphere(levels);
-    } else if (a.pos[0] == "soup") {
-        m = make_random_soup(tris, seed);
-    } else {
-        throw UsageError("unknown mesh kind '" + a.pos[0] + "' (known: torus, icosphere, soup)");
-    }
+    if (kind == "torus") m = make_bumpy_torus(tris);
+    else if (kind == "icosphere") m = make_icosphere(icosphere_level_for(tris));
+    else m = make_random_soup(tris, seed);
     save_obj(m, a.pos[1]);
     std::printf("wrote %s: %zu triangles, %zu vertices\n", a.pos[1].c_str(), m.triangle_count(), m.vertex_count());
     return 0;
@@ -440,8 +472,15 @@ int main(int argc, char** argv) {
         std::fputs(kUsage, stderr);
         std::fprintf(stderr, "raykit: error: %s\n", e.what());
         return 2;
+    } catch (const std::bad_alloc&) {
+        std::fprintf(stderr, "raykit: error: out of memory (%s needed more than this process may allocate)\n",
+                     cmd.c_str());
+        return 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "raykit: error: %s\n", e.what());
+        return 1;
+    } catch (...) {
+        std::fprintf(stderr, "raykit: error: unknown failure in %s\n", cmd.c_str());
         return 1;
     }
 }

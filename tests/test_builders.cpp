@@ -2,16 +2,21 @@
 // O(n²) pairwise reference, thread-count independence and the depth bound.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <functional>
 #include <limits>
+#include <mutex>
 #include <random>
+#include <set>
 #include <string>
+#include <thread>
 
 #include "raykit.hpp"
 #include "test_support.hpp"
+#include "raykit/scene/build_options.hpp"
 #include "raykit/scene/generate.hpp"
 
 using namespace raykit;
@@ -666,4 +671,82 @@ TEST(Builders, MutualPairingSplitsTiesEvenly) {
             EXPECT_LE(bvh.depth(), 16) << (tris == &same ? "identical" : "grid");  // 4096 = 2^12
         }
     }
+}
+
+// ---- issue 12: thread counts and generator sizes are bounded ----------------------------------
+
+TEST(Builders, ThreadCountsAboveTheLimitAreRejected) {
+    const Mesh m = make_icosphere(2);
+    const PrimitiveRefs r = primitive_refs(m);
+    for (unsigned threads : {kMaxThreads + 1, 1u << 31, 0xFFFFFFFFu}) {
+        BinnedSahBuilder::Config sah;
+        sah.threads = threads;
+        EXPECT_THROW(BinnedSahBuilder::build(r.boxes, r.centers, sah), std::invalid_argument) << threads;
+        PairwiseBuilder::Config pw;
+        pw.threads = threads;
+        EXPECT_THROW(PairwiseBuilder::build(r.boxes, r.centers, pw), std::invalid_argument) << threads;
+        SortAxisBuilder::Config sa;
+        sa.threads = threads;
+        EXPECT_THROW(SortAxisBuilder::build(r.boxes, r.centers, sa), std::invalid_argument) << threads;
+        PlocBuilder::Config pl;
+        pl.threads = threads;
+        EXPECT_THROW(PlocBuilder::build(r.boxes, r.centers, pl), std::invalid_argument) << threads;
+        for (auto b : {BuildOptions::Builder::sah, BuildOptions::Builder::pairwise, BuildOptions::Builder::sortaxis,
+                       BuildOptions::Builder::ploc}) {
+            BuildOptions o;
+            o.builder = b;
+            o.threads = threads;
+            EXPECT_THROW(build_bvh(MeshView(m), o), std::invalid_argument) << BuildOptions::name(b) << " " << threads;
+        }
+    }
+    // the limit itself is accepted and gives the one-thread tree
+    BinnedSahBuilder::Config one, most;
+    one.threads = 1;
+    most.threads = kMaxThreads;
+    const Bvh a = BinnedSahBuilder::build(r.boxes, r.centers, one), b = BinnedSahBuilder::build(r.boxes, r.centers, most);
+    EXPECT_EQ(a.prim_ids, b.prim_ids);
+    EXPECT_EQ(a.nodes.size(), b.nodes.size());
+}
+
+TEST(Builders, ParallelHelpersClampTheThreadCount) {
+    EXPECT_EQ(resolve_threads(0xFFFFFFFFu), kMaxThreads);
+    EXPECT_EQ(resolve_threads(kMaxThreads + 1), kMaxThreads);
+    EXPECT_EQ(resolve_threads(3), 3u);
+    EXPECT_GE(resolve_threads(0), 1u);
+    EXPECT_LE(resolve_threads(0), kMaxThreads);
+    EXPECT_THROW(check_threads(kMaxThreads + 1, "test"), std::invalid_argument);
+    EXPECT_NO_THROW(check_threads(kMaxThreads, "test"));
+    // an absurd count still visits every index once, on at most kMaxThreads threads
+    const std::size_t n = 50000;
+    std::vector<std::uint8_t> seen(n, 0);
+    std::mutex mu;
+    std::set<std::thread::id> ids;
+    parallel_for(n, 0xFFFFFFFFu, [&](std::size_t i) {
+        seen[i] += 1;
+        if (i % 16 == 0) {
+            std::lock_guard lock(mu);
+            ids.insert(std::this_thread::get_id());
+        }
+    });
+    EXPECT_EQ(std::count(seen.begin(), seen.end(), std::uint8_t(1)), std::ptrdiff_t(n));
+    EXPECT_LE(ids.size(), std::size_t(kMaxThreads));
+}
+
+TEST(Generate, SizesTheGeneratorsCannotMakeAreRejected) {
+    EXPECT_THROW(make_bumpy_torus(std::numeric_limits<std::size_t>::max()), std::length_error);
+    EXPECT_THROW(make_bumpy_torus(std::size_t(1) << 40), std::length_error);
+    EXPECT_THROW(make_icosphere(-1), std::invalid_argument);
+    EXPECT_THROW(make_icosphere(kMaxIcosphereLevel + 1), std::invalid_argument);
+    EXPECT_THROW(make_random_soup(std::numeric_limits<std::size_t>::max(), 1), std::length_error);
+    EXPECT_THROW(make_random_soup(std::size_t(1) << 31, 1), std::length_error);
+    EXPECT_EQ(make_bumpy_torus(1000).triangle_count(), 1024u);
+    EXPECT_EQ(make_icosphere(3).triangle_count(), 1280u);
+    EXPECT_EQ(make_random_soup(7, 1).triangle_count(), 7u);
+    // the icosphere level for a triangle budget: the largest that fits, never a shift past 64 bits
+    EXPECT_EQ(icosphere_level_for(0), 0);
+    EXPECT_EQ(icosphere_level_for(20), 0);
+    EXPECT_EQ(icosphere_level_for(79), 0);
+    EXPECT_EQ(icosphere_level_for(80), 1);
+    EXPECT_EQ(icosphere_level_for(5119), 3);
+    EXPECT_EQ(icosphere_level_for(std::numeric_limits<std::size_t>::max()), kMaxIcosphereLevel);
 }

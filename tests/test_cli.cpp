@@ -273,3 +273,212 @@ TEST(CliInputs, ASceneWithoutTrianglesIsReported) {
     EXPECT_NE(r.err.find("raykit: warning: " + smd.string() + ":0: no triangles"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("'.smd'"), std::string::npos) << r.err;
 }
+
+// ---- issue 12: every numeric flag bounded, every failure one honest line -------------------------
+
+#if defined(__SANITIZE_ADDRESS__)
+#define RAYKIT_CLI_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define RAYKIT_CLI_TEST_ASAN 1
+#endif
+#endif
+
+namespace {
+
+/// Runs a shell line in which RAYKIT names the CLI; `timeout` turns a hang into exit 124.
+Result run_sh(const std::string& line) {
+    const fs::path out = tmpdir() / "stdout.txt", err = tmpdir() / "stderr.txt";
+    const std::string cmd = "RAYKIT='" + std::string(RAYKIT_CLI_PATH) + "'; (" + line + ") >" + out.string() + " 2>" +
+                            err.string();
+    const int status = std::system(cmd.c_str());
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), slurp(out), slurp(err)};
+}
+
+/// The CLI with `args`, stopped after 60 s (a hang fails as exit 124, not as a stuck test).
+Result run_bounded(const std::string& args) { return run_sh("timeout 60 \"$RAYKIT\" " + args); }
+
+/// A failure as issue 12 wants it: exit `code`; stderr's one "raykit: error: " line is its last
+/// and names `needle`; the usage text comes before it exactly when the exit is 2 (bad flags);
+/// other lines are warnings.
+void expect_one_error_line(const Result& r, int code, const std::string& needle, const std::string& what) {
+    EXPECT_EQ(r.code, code) << what << "\nstderr: " << r.err;
+    std::vector<std::string> lines;
+    std::istringstream in(r.err);
+    for (std::string l; std::getline(in, l);) lines.push_back(l);
+    std::size_t errors = 0;
+    for (const std::string& l : lines) errors += l.rfind("raykit: error: ", 0) == 0;
+    EXPECT_EQ(errors, 1u) << what << "\nstderr: " << r.err;
+    ASSERT_FALSE(lines.empty()) << what;
+    EXPECT_EQ(lines.back().rfind("raykit: error: ", 0), 0u) << what << "\nstderr: " << r.err;
+    EXPECT_NE(lines.back().find(needle), std::string::npos) << what << "\nstderr: " << r.err;
+    const bool usage = r.err.rfind("usage:", 0) == 0;
+    EXPECT_EQ(usage, code == 2) << what << "\nstderr: " << r.err;
+    if (code != 2) {
+        for (std::size_t i = 0; i + 1 < lines.size(); ++i)
+            EXPECT_EQ(lines[i].rfind("raykit: warning: ", 0), 0u) << what << "\nline: " << lines[i];
+    }
+}
+
+/// A small closed scene for the bound tests.
+fs::path bounds_scene() {
+    static const fs::path p = [] {
+        const fs::path s = tmpdir() / "bounds_sphere.obj";
+        save_obj(make_icosphere(1), s);
+        return s;
+    }();
+    return p;
+}
+
+}  // namespace
+
+TEST(CliBounds, ThreadCountsAboveTheLimitAreUsageErrors) {
+    const std::string s = bounds_scene().string();
+    const fs::path rays = tmpdir() / "bounds_rays.txt", hits = tmpdir() / "bounds_hits.txt";
+    write(rays, "0 0 -5 0 0 1 0 inf\n");
+    const std::string png = (tmpdir() / "bounds_threads.png").string();
+    for (const std::string& cmd : {"info " + s, "check " + s + " --rays 10", "trace " + s + " " + rays.string() + " " +
+                                  hits.string(), "render " + s + " " + png + " --width 8 --height 8 --quiet"})
+        for (const char* t : {"4294967295", "2147483648", "1025", "-1", "99999999999999999999", "1e400", "2e3"})
+            expect_one_error_line(run_bounded(cmd + " --threads " + t), 2, "--threads must be in 0..1024",
+                                  cmd + " --threads " + t);
+    EXPECT_EQ(run_bounded("info " + s + " --threads 1024").code, 0);
+    EXPECT_EQ(run_bounded("render " + s + " " + png + " --width 8 --height 8 --quiet --threads 1024").code, 0);
+}
+
+TEST(CliBounds, GenerateRejectsTriangleCountsItCannotMake) {
+    const fs::path out = tmpdir() / "bounds_gen.obj";
+    for (const char* kind : {"torus", "icosphere", "soup"})
+        for (const char* n : {"0", "18446744073709551615", "4294967296", "1000001", "-3"}) {
+            fs::remove(out);
+            const std::string cmd = std::string("generate ") + kind + " " + out.string() + " --tris " + n;
+            expect_one_error_line(run_bounded(cmd), 2, "--tris must be in 1..1000000", cmd);
+            EXPECT_FALSE(fs::exists(out)) << cmd;
+        }
+    expect_one_error_line(run_bounded("generate soup " + out.string() + " --seed -1"), 2, "--seed", "seed -1");
+    ASSERT_EQ(run_bounded("generate icosphere " + out.string() + " --tris 20").code, 0);
+    EXPECT_EQ(load_obj(out).triangle_count(), 20u);
+    ASSERT_EQ(run_bounded("generate icosphere " + out.string() + " --tris 5119").code, 0);
+    EXPECT_EQ(load_obj(out).triangle_count(), 1280u);  // the largest level that fits: 20·4^3
+    ASSERT_EQ(run_bounded("generate soup " + out.string() + " --tris 1").code, 0);
+    EXPECT_EQ(load_obj(out).triangle_count(), 1u);
+}
+
+TEST(CliBounds, RenderFlagsOutOfRangeAreUsageErrors) {
+    const std::string base = "render " + bounds_scene().string() + " " + (tmpdir() / "bounds_flags.png").string() +
+                             " --width 8 --height 8 --quiet ";
+    const std::pair<const char*, const char*> bad[] = {
+        {"--ao-samples 4000000000", "--ao-samples must be in 1..4096"},
+        {"--ao-samples 4097", "--ao-samples must be in 1..4096"},
+        {"--ao-samples 0", "--ao-samples must be in 1..4096"},
+        {"--ao-samples -1", "--ao-samples must be in 1..4096"},
+        {"--ao-radius -1", "--ao-radius must be a finite number > 0"},
+        {"--ao-radius 0", "--ao-radius must be a finite number > 0"},
+        {"--ao-radius nan", "--ao-radius"},
+        {"--ao-radius inf", "--ao-radius"},
+        {"--light 0 5 0 -1 1 1", "--light colour must be finite and >= 0"},
+        {"--sun 0 -1 0 1 -0.5 1", "--sun colour must be finite and >= 0"},
+        {"--ambient -0.1 0 0", "--ambient colour must be finite and >= 0"},
+        {"--background 0 0 -1", "--background colour must be finite and >= 0"},
+        {"--sun 0 0 0 1 1 1", "--sun direction"},
+        {"--sun 1e30 1e30 1e30 1 1 1", "--sun direction"},
+        {"--fov 0", "--fov must be in (0, 180)"},
+        {"--fov 180", "--fov must be in (0, 180)"},
+        {"--fov nan", "--fov"},
+        {"--width 0", "--width must be in 1..65536"},
+        {"--height 65537", "--height must be in 1..65536"},
+        {"--width 99999999999", "--width must be in 1..65536"},
+        {"--spp 0", "--spp must be in 1..65536"},
+        {"--spp 65537", "--spp must be in 1..65536"},
+        {"--max-depth 1001", "--max-depth must be in 0..1000"},
+        {"--max-depth 18446744073709551616", "--max-depth must be in 0..1000"},
+        {"--leaf-size 0", "--leaf-size must be in 1..4294967295"},
+        {"--seed -1", "--seed"},
+        {"--camera 0 0 5 0 0 5", "--camera"},
+        {"--up 0 0 0", "--up"},
+    };
+    for (const auto& [flags, needle] : bad) expect_one_error_line(run_bounded(base + flags), 2, needle, flags);
+    // the edges of each range work
+    for (const char* ok : {"--ao-samples 4096 --shader ao", "--ao-samples 1 --shader ao --ao-radius 1e-3",
+                           "--max-depth 0", "--max-depth 1000", "--fov 179", "--light 0 5 0 0 0 0",
+                           "--seed 18446744073709551615", "--spp 2"})
+        EXPECT_EQ(run_bounded(base + ok).code, 0) << ok;
+    // the caps are in the usage text
+    const Result u = run_bounded("render");
+    EXPECT_NE(u.err.find("1..4096"), std::string::npos) << u.err;
+    EXPECT_NE(u.err.find("16777216 pixels"), std::string::npos) << u.err;
+}
+
+TEST(CliBounds, ImagesRaysAndFramesHaveDocumentedLimits) {
+    const std::string s = bounds_scene().string();
+    const std::string png = (tmpdir() / "bounds_big.png").string();
+    expect_one_error_line(run_bounded("render " + s + " " + png + " --width 65536 --height 65536"), 2,
+                          "at most 16777216 pixels", "65536 x 65536");
+    expect_one_error_line(run_bounded("render " + s + " " + png + " --width 4097 --height 4096"), 2,
+                          "at most 16777216 pixels", "4097 x 4096");
+    expect_one_error_line(run_bounded("check " + s + " --rays 1000000000000"), 2, "--rays must be in 1..1000000",
+                          "check --rays 1e12");
+    expect_one_error_line(run_bounded("check " + s + " --rays 0"), 2, "--rays must be in 1..1000000", "--rays 0");
+    expect_one_error_line(run_bounded("animate-test " + s + " --frames 1000000000"), 2,
+                          "--frames must be in 1..1000", "animate-test --frames 1e9");
+    expect_one_error_line(run_bounded("info " + s + " --builder sortaxis --window 4097"), 2,
+                          "--window must be in 1..4096", "--window 4097");
+    expect_one_error_line(run_bounded("info " + s + " --leaf 0"), 2, "--leaf must be in 1..4294967295", "--leaf 0");
+    const Result h = run_bounded("--help");
+    EXPECT_NE(h.out.find("1..1000000 (default 2000)"), std::string::npos) << h.out;
+}
+
+TEST(CliBounds, ScenesThatAreNotRegularFilesAreRefused) {
+    for (const std::string& bad : {std::string("/dev/zero"), tmpdir().string()}) {
+        expect_one_error_line(run_bounded("info " + bad), 1, "not a regular file", "info " + bad);
+        expect_one_error_line(run_bounded("render " + bad + " " + (tmpdir() / "x.png").string()), 1,
+                              "not a regular file", "render " + bad);
+    }
+}
+
+TEST(CliBounds, OutOfMemoryIsOneLine) {
+#if defined(RAYKIT_CLI_TEST_ASAN)
+    GTEST_SKIP() << "ulimit -v and AddressSanitizer's shadow memory do not mix";
+#else
+    // 4096 x 4096 float pixels are 256 MiB: under a 200 MiB address-space limit the image cannot
+    // be allocated, however little the scene needs
+    const Result r = run_sh("ulimit -v 204800; timeout 60 \"$RAYKIT\" render " + bounds_scene().string() + " " +
+                            (tmpdir() / "bounds_oom.png").string() + " --width 4096 --height 4096 --quiet");
+    expect_one_error_line(r, 1, "raykit: error: out of memory (", "render under ulimit -v");
+    EXPECT_EQ(r.err.find("std::bad_alloc"), std::string::npos) << r.err;
+#endif
+}
+
+TEST(CliBounds, OutputsAreCheckedBeforeAnyWork) {
+    const std::string s = bounds_scene().string();
+    const fs::path png = tmpdir() / "bounds_first.png";
+    fs::remove(png);
+    expect_one_error_line(run_bounded("render " + s + " " + png.string() + " --width 8 --height 8 --pfm " +
+                                      "/nonexistent_raykit_dir/x.pfm"),
+                          1, "/nonexistent_raykit_dir/x.pfm", "--pfm into a missing folder");
+    EXPECT_FALSE(fs::exists(png)) << "the PNG was written before the PFM failed";
+    expect_one_error_line(run_bounded("render " + s + " /nonexistent_raykit_dir/o.png"), 1,
+                          "/nonexistent_raykit_dir/o.png", "OUT.png into a missing folder");
+    expect_one_error_line(run_bounded("render " + s + " " + tmpdir().string()), 1, tmpdir().string(),
+                          "OUT.png is a folder");
+    // the HITS file is checked before the (missing) RAYS file is read
+    expect_one_error_line(run_bounded("trace " + s + " /nonexistent_raykit_dir/r.txt /nonexistent_raykit_dir/h.txt"),
+                          1, "/nonexistent_raykit_dir/h.txt", "HITS into a missing folder");
+    expect_one_error_line(run_bounded("generate torus /nonexistent_raykit_dir/t.obj"), 1,
+                          "/nonexistent_raykit_dir/t.obj", "generate into a missing folder");
+}
+
+TEST(CliBounds, LibraryErrorsNeverPrintUsage) {
+    // a scene around 1e20 once printed the usage text: the camera framed from its bounds was not
+    // finite and that library error was taken for a bad flag
+    const fs::path far = tmpdir() / "bounds_far.obj";
+    write(far, "v 1e20 0 0\nv -1e20 0 0\nv 0 1e20 0\nf 1 2 3\n");
+    const std::string png = (tmpdir() / "bounds_far.png").string();
+    expect_one_error_line(run_bounded("render " + far.string() + " " + png + " --width 8 --height 8"), 1, "",
+                          "render at 1e20");
+    const fs::path bad = tmpdir() / "bounds_bad.obj";
+    write(bad, "v 0 0 0\nf 1 2 3\n");
+    for (const std::string cmd : {"info", "check", "render"})
+        expect_one_error_line(run_bounded(cmd + " " + bad.string() + (cmd == "render" ? " " + png : std::string())), 1,
+                              "bounds_bad.obj:2", cmd + " with a bad face");
+}

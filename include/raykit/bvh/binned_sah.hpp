@@ -48,7 +48,7 @@ struct BinnedSahBuilder {
         /// through 4-triangle SIMD blocks (scene/block_bvh.hpp), whose leaves
         /// then fill their blocks. A power of two, 1..16.
         unsigned leaf_block = 1;
-        unsigned threads = 0;                   ///< 0 = all hardware threads
+        unsigned threads = 0;                   ///< 0 = all hardware threads; at most kMaxThreads (else std::invalid_argument)
         std::size_t parallel_threshold = 4096;  ///< subtrees smaller than this stay on one thread
     };
 
@@ -61,6 +61,7 @@ struct BinnedSahBuilder {
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("BinnedSahBuilder: too many primitives");
         if (cfg.bins < 2 || cfg.bins > 256) throw std::invalid_argument("BinnedSahBuilder: bins must be in [2, 256]");
         check_leaf_block(cfg.leaf_block, "BinnedSahBuilder");
+        check_threads(cfg.threads, "BinnedSahBuilder");
         Bvh bvh;
         const auto n = static_cast<std::uint32_t>(boxes.size());
         if (n == 0) return bvh;

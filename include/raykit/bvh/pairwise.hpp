@@ -80,7 +80,7 @@ struct PairwiseBuilder {
         float traversal_cost = 1.0f;     ///< Ct for the leaf collapse
         float intersection_cost = 1.0f;  ///< Ci for the leaf collapse
         unsigned leaf_block = 1;        ///< leaf collapse: primitives per SIMD test (LeafCollapseConfig)
-        unsigned threads = 0;            ///< 0 = all hardware threads
+        unsigned threads = 0;            ///< 0 = all hardware threads; at most kMaxThreads (else std::invalid_argument)
     };
 
     static Bvh build(std::span<const AABB> boxes, std::span<const vec3> centers) {
@@ -390,6 +390,7 @@ private:
             throw std::invalid_argument("PairwiseBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("PairwiseBuilder: too many primitives");
         check_leaf_block(cfg.leaf_block, "PairwiseBuilder");
+        check_threads(cfg.threads, "PairwiseBuilder");
         const unsigned threads = resolve_threads(cfg.threads);
         const bool area = cfg.metric == Config::Metric::area;
         const auto n = static_cast<std::uint32_t>(boxes.size());

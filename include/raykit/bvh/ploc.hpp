@@ -67,7 +67,7 @@ struct PlocBuilder {
         float traversal_cost = 1.0f;     ///< Ct for the leaf collapse
         float intersection_cost = 1.0f;  ///< Ci for the leaf collapse
         unsigned leaf_block = 1;        ///< leaf collapse: primitives per SIMD test (LeafCollapseConfig)
-        unsigned threads = 0;            ///< 0 = all hardware threads
+        unsigned threads = 0;            ///< 0 = all hardware threads; at most kMaxThreads (else std::invalid_argument)
         OptimizeConfig optimize{};       ///< post-pass (bvh/optimize.hpp); OptimizeConfig::off() for plain PLOC
     };
 
@@ -78,6 +78,7 @@ struct PlocBuilder {
         if (boxes.size() != centers.size())
             throw std::invalid_argument("PlocBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("PlocBuilder: too many primitives");
+        check_threads(cfg.threads, "PlocBuilder");
         check_leaf_block(cfg.leaf_block, "PlocBuilder");
         if (cfg.radius < 1 || cfg.radius > 1024) throw std::invalid_argument("PlocBuilder: radius must be in [1, 1024]");
         const unsigned threads = resolve_threads(cfg.threads);

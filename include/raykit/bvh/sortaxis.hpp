@@ -107,7 +107,7 @@ struct SortAxisBuilder {
         float traversal_cost = 1.0f;        ///< Ct for the leaf collapse
         float intersection_cost = 1.0f;     ///< Ci for the leaf collapse
         unsigned leaf_block = 1;        ///< leaf collapse: primitives per SIMD test (LeafCollapseConfig)
-        unsigned threads = 0;               ///< 0 = all hardware threads
+        unsigned threads = 0;               ///< 0 = all hardware threads; at most kMaxThreads (else std::invalid_argument)
         OptimizeConfig optimize = OptimizeConfig::off();  ///< post-pass (bvh/optimize.hpp)
     };
 
@@ -118,6 +118,7 @@ struct SortAxisBuilder {
         if (boxes.size() != centers.size())
             throw std::invalid_argument("SortAxisBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("SortAxisBuilder: too many primitives");
+        check_threads(cfg.threads, "SortAxisBuilder");
         check_leaf_block(cfg.leaf_block, "SortAxisBuilder");
         if (cfg.window < 1 || cfg.window > 4096)
             throw std::invalid_argument("SortAxisBuilder: window must be in [1, 4096]");

@@ -35,7 +35,7 @@ struct BuildOptions {
     Builder builder = Builder::sah;
     unsigned max_leaf_size = 8;  ///< all builders
     unsigned leaf_block = 1;     ///< all builders: SAH leaf cost in blocks of this many (4 for BlockBvh tracing)
-    unsigned threads = 0;        ///< all builders; 0 = all hardware threads
+    unsigned threads = 0;        ///< all builders; 0 = all hardware threads, at most kMaxThreads (else std::invalid_argument)
     unsigned window = SortAxisBuilder::Config{}.window;  ///< sortaxis: W
     Axis axis = Axis::morton;    ///< sortaxis
     std::optional<Metric> metric;    ///< pairwise, sortaxis (unset: the builder's default)
@@ -84,6 +84,7 @@ struct BuildOptions {
 
 /// Builds with the builder and settings named in `o`.
 inline Bvh build_bvh(std::span<const AABB> boxes, std::span<const vec3> centers, const BuildOptions& o) {
+    check_threads(o.threads, "build_bvh");
     using B = BuildOptions::Builder;
     switch (o.builder) {
         case B::pairwise: {
@@ -134,6 +135,7 @@ inline Bvh build_bvh(std::span<const AABB> boxes, std::span<const vec3> centers,
 }
 
 inline Bvh build_bvh(const MeshView& mesh, const BuildOptions& o) {
+    check_threads(o.threads, "build_bvh");  // before primitive_refs spends the time
     const PrimitiveRefs r = primitive_refs(mesh, o.threads);
     return build_bvh(r.boxes, r.centers, o);
 }

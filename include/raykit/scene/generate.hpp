@@ -3,11 +3,20 @@
 // All generators are deterministic (seeded) and the closed ones share vertices
 // between neighbouring triangles, so they are watertight: every ray that
 // enters the surface's inside must hit a triangle.
+//
+// Sizes are checked against what 32-bit vertex indices can number (torus
+// nv <= 46340, icosphere level <= 13, soup n <= 1,431,655,765): beyond that
+// std::length_error / std::invalid_argument, where the torus once wrapped to
+// an empty mesh for 2^64 - 1. These are representability limits, not
+// memory ones: level 13 is 1.3e9 triangles; callers bound memory themselves.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <stdexcept>
+#include <string>
 #include <unordered_map>
 #include <utility>
 
@@ -19,7 +28,11 @@ namespace raykit {
 /// `target_triangles` triangles (2·nu·nv, nu = 2·nv). `bumps` scales the
 /// displacement (0 = smooth torus). Normals are not generated.
 inline Mesh make_bumpy_torus(std::size_t target_triangles, float bumps = 0.15f, float R = 1.0f, float r = 0.4f) {
-    const auto nv = static_cast<std::uint32_t>(std::max(3.0, std::round(std::sqrt(double(target_triangles) / 4.0))));
+    const double nvd = std::max(3.0, std::round(std::sqrt(double(target_triangles) / 4.0)));
+    if (nvd > 46340.0)  // nu·nv = 2·nv² vertices must fit 32-bit indices
+        throw std::length_error("make_bumpy_torus: " + std::to_string(target_triangles) +
+                                " triangles needs more vertices than 32-bit indices can number (at most 8589767760 triangles)");
+    const auto nv = static_cast<std::uint32_t>(nvd);
     const std::uint32_t nu = 2 * nv;
     Mesh m;
     m.positions.reserve(std::size_t(nu) * nv);
@@ -46,8 +59,22 @@ inline Mesh make_bumpy_torus(std::size_t target_triangles, float bumps = 0.15f, 
     return m;
 }
 
-/// A closed icosphere of radius 1 subdivided `levels` times (20·4^levels triangles).
+/// Deepest icosphere subdivision whose 10·4^l + 2 vertices and 20·4^l triangles fit 32-bit indices.
+inline constexpr int kMaxIcosphereLevel = 13;
+
+/// The deepest level (0..kMaxIcosphereLevel) with at most `triangles` triangles (0 when even 20 is too many).
+inline int icosphere_level_for(std::size_t triangles) noexcept {
+    int level = 0;
+    while (level < kMaxIcosphereLevel && (std::uint64_t(20) << (2 * (level + 1))) <= triangles) ++level;
+    return level;
+}
+
+/// A closed icosphere of radius 1 subdivided `levels` times (20·4^levels triangles), levels in
+/// 0..kMaxIcosphereLevel (else std::invalid_argument).
 inline Mesh make_icosphere(int levels) {
+    if (levels < 0 || levels > kMaxIcosphereLevel)
+        throw std::invalid_argument("make_icosphere: levels must be in 0.." + std::to_string(kMaxIcosphereLevel) +
+                                    ", not " + std::to_string(levels));
     Mesh m;
     const float t = (1.0f + std::sqrt(5.0f)) / 2.0f;
     m.positions = {{-1, t, 0}, {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
@@ -85,6 +112,9 @@ inline Mesh make_icosphere(int levels) {
 /// `n` random triangles in the unit cube with edge lengths up to `size`
 /// (a "soup": overlapping, unconnected).
 inline Mesh make_random_soup(std::size_t n, std::uint64_t seed, float size = 0.1f) {
+    if (n > 0xFFFFFFFFu / 3)  // 3·n vertices must fit 32-bit indices
+        throw std::length_error("make_random_soup: " + std::to_string(n) +
+                                " triangles is more than 32-bit indices can number (at most 1431655765)");
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<float> U(0.0f, 1.0f), S(-size, size);
     Mesh m;

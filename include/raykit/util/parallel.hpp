@@ -4,20 +4,40 @@
 // of chunks that depends only on the input size and the thread count asked for,
 // so results are the same whatever the machine. `threads == 0` means
 // std::thread::hardware_concurrency().
+//
+// Thread counts are bounded by kMaxThreads (1024). Entry points that take a
+// count from a caller (BuildOptions and every builder's Config) reject a larger
+// one with std::invalid_argument; these helpers clamp to it, so no path can
+// start more threads than that or compute a fork depth past 1u << 10. Without
+// the bound, --threads 4294967295 made the binned SAH's fork-depth loop shift
+// a 32-bit 1 by 32 (undefined; it hung), and a parallel_for over a million
+// rays would have asked for a million threads.
 #pragma once
 
 #include <algorithm>
 #include <cstddef>
 #include <exception>
+#include <stdexcept>
+#include <string>
 #include <thread>
 #include <vector>
 
 namespace raykit {
 
-/// Resolves a user thread count (0 = all hardware threads) to at least 1.
+/// Largest thread count raykit accepts (a 4-socket server has a few hundred).
+inline constexpr unsigned kMaxThreads = 1024;
+
+/// Throws std::invalid_argument naming `who` when `threads` exceeds kMaxThreads.
+inline void check_threads(unsigned threads, const char* who) {
+    if (threads > kMaxThreads)
+        throw std::invalid_argument(std::string(who) + ": threads must be in 0.." + std::to_string(kMaxThreads) +
+                                    " (0 = all hardware threads), not " + std::to_string(threads));
+}
+
+/// Resolves a user thread count (0 = all hardware threads) to 1..kMaxThreads.
 inline unsigned resolve_threads(unsigned threads) noexcept {
     if (threads == 0) threads = std::thread::hardware_concurrency();
-    return threads == 0 ? 1u : threads;
+    return threads == 0 ? 1u : std::min(threads, kMaxThreads);
 }
 
 /// Calls fn(chunk_index, begin, end) for `chunks` contiguous chunks of [0, n),
