@@ -221,6 +221,16 @@ inline vec3 colour_at(const std::string& opt, const std::vector<std::string>& v,
     return c;
 }
 
+/// A position given on the command line: inside math/limits.hpp's coordinate range (rays from
+/// farther out could be answered wrongly by the triangle tests).
+inline vec3 position_at(const std::string& opt, const std::vector<std::string>& v, std::size_t first) {
+    const vec3 p = vec3_at(opt, v, first);
+    if (!coordinate_in_range(p.x) || !coordinate_in_range(p.y) || !coordinate_in_range(p.z))
+        throw RaykitCliRenderUsageError(opt + " position must lie within +-2^32 (4.29e9) on every axis, got " +
+                                        v[first] + " " + v[first + 1] + " " + v[first + 2]);
+    return p;
+}
+
 /// Throws std::runtime_error unless `path` can be written: its folder exists and is writable,
 /// and `path` is not a folder (issue 12: every output is checked before any work).
 inline void check_writable(const std::filesystem::path& path) {
@@ -237,15 +247,6 @@ inline void check_writable(const std::filesystem::path& path) {
     if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
         throw std::runtime_error("cannot write " + path.string() + ": permission denied");
 #endif
-}
-
-/// Throws std::runtime_error when `path` exists but is not a regular file (a folder, /dev/zero, a
-/// pipe): such a scene never ended or failed with a bare bad_alloc. A missing file is the loader's.
-inline void check_regular_input(const std::filesystem::path& path) {
-    std::error_code ec;
-    const auto st = std::filesystem::status(path, ec);
-    if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
-        throw std::runtime_error(path.string() + ": not a regular file");
 }
 
 /// Progress bar on stderr: appears once a render has run for a second, updates at most 10 times
@@ -354,7 +355,7 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
     const float fov = cr::number_or<float>(p, "--fov", 45.0f);
     if (!(fov > 0.0f && fov < 180.0f)) throw RaykitCliRenderUsageError("--fov must be in (0, 180)");
     for (const auto& [k, v] : p.opts) {
-        if (k == "--light") (void)cr::colour_at(k, v, 3);
+        if (k == "--light") (void)cr::position_at(k, v, 0), (void)cr::colour_at(k, v, 3);
         if (k == "--sun") {
             const vec3 d = cr::vec3_at(k, v, 0);
             if (!(glm::length(d) > 0.0f) || !std::isfinite(glm::length(d)))
@@ -370,8 +371,8 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
     // a camera made from flags alone is checked here, where its errors are usage errors
     if (auto* v = p.last("--camera")) {
         Camera c;
-        c.position = cr::vec3_at("--camera", *v, 0);
-        c.target = cr::vec3_at("--camera", *v, 3);
+        c.position = cr::position_at("--camera", *v, 0);
+        c.target = cr::position_at("--camera", *v, 3);
         if (auto* u = p.last("--up")) c.up = cr::vec3_at("--up", *u, 0);
         c.vfov_degrees = fov;
         c.width = width;
@@ -395,7 +396,7 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
     // ---- every output writable, the scene a file, before any work
     cr::check_writable(p.pos[1]);
     if (auto* v = p.last("--pfm")) cr::check_writable((*v)[0]);
-    cr::check_regular_input(p.pos[0]);
+    raykit::detail::check_text_file(p.pos[0]);  // the scene a regular file, before any work
 
     // ---- load, build, materials
     auto t0 = Clock::now();

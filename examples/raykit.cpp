@@ -155,7 +155,7 @@ constexpr std::uint64_t kMaxAnimateTestFrames = 1000;
 /// Every output checked writable and every input a regular file, before any work.
 void check_files(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs) {
     for (const std::string& o : outputs) raykit::detail::cli_render::check_writable(o);
-    for (const std::string& i : inputs) raykit::detail::cli_render::check_regular_input(i);
+    for (const std::string& i : inputs) raykit::detail::check_text_file(i);
 }
 
 /// Options every command that builds a tree takes.

@@ -384,6 +384,9 @@ TEST(CliBounds, RenderFlagsOutOfRangeAreUsageErrors) {
         {"--sun 1e30 1e30 1e30 1 1 1", "--sun direction"},
         {"--fov 0", "--fov must be in (0, 180)"},
         {"--fov 180", "--fov must be in (0, 180)"},
+        {"--camera 1e20 0 0 0 0 0", "--camera position must lie within"},
+        {"--camera 0 0 5 0 -5e9 0", "--camera position must lie within"},
+        {"--light 0 0 1e10 1 1 1", "--light position must lie within"},
         {"--fov nan", "--fov"},
         {"--width 0", "--width must be in 1..65536"},
         {"--height 65537", "--height must be in 1..65536"},
@@ -430,9 +433,10 @@ TEST(CliBounds, ImagesRaysAndFramesHaveDocumentedLimits) {
 
 TEST(CliBounds, ScenesThatAreNotRegularFilesAreRefused) {
     for (const std::string& bad : {std::string("/dev/zero"), tmpdir().string()}) {
-        expect_one_error_line(run_bounded("info " + bad), 1, "not a regular file", "info " + bad);
-        expect_one_error_line(run_bounded("render " + bad + " " + (tmpdir() / "x.png").string()), 1,
-                              "not a regular file", "render " + bad);
+        const std::string why = bad == "/dev/zero" ? ":0: is not a regular file" : ":0: is a directory";
+        expect_one_error_line(run_bounded("info " + bad), 1, bad + why, "info " + bad);
+        expect_one_error_line(run_bounded("render " + bad + " " + (tmpdir() / "x.png").string()), 1, bad + why,
+                              "render " + bad);
     }
 }
 

@@ -73,9 +73,10 @@ inline std::string obj_quote(std::string_view s) {
     return out;
 }
 
-/// Reads a whole regular file of at most kMaxTextFileBytes; ParseError(file, 0, ...)
-/// naming it when it is missing, not a regular file, too large or unreadable.
-inline std::string read_text_file(const std::filesystem::path& file) {
+/// Throws ParseError ("FILE:0: ...") unless `file` is an existing regular file within
+/// kMaxTextFileBytes: what every reader checks before reading (a folder, /dev/zero or a pipe
+/// never ends or ends in bad_alloc otherwise). Returns its size.
+inline std::uintmax_t check_text_file(const std::filesystem::path& file) {
     const std::string name = file.string();
     std::error_code ec;
     const std::filesystem::file_status st = std::filesystem::status(file, ec);
@@ -87,17 +88,26 @@ inline std::string read_text_file(const std::filesystem::path& file) {
         throw ParseError(name, 0, "is not a regular file (a device, pipe or socket)");
     }
     const std::uintmax_t size = std::filesystem::file_size(file, ec);
-    if (!ec && size > kMaxTextFileBytes) {
+    if (ec) throw ParseError(name, 0, "cannot read its size: " + ec.message());
+    if (size > kMaxTextFileBytes) {
         throw ParseError(name, 0, "file is " + std::to_string(size) + " bytes, over the limit of " +
                                       std::to_string(kMaxTextFileBytes) + " bytes");
     }
+    return size;
+}
+
+/// Reads a whole regular file of at most kMaxTextFileBytes; ParseError(file, 0, ...)
+/// naming it when it is missing, not a regular file, too large or unreadable.
+inline std::string read_text_file(const std::filesystem::path& file) {
+    const std::string name = file.string();
+    const std::uintmax_t size = check_text_file(file);
     struct Closer {
         void operator()(std::FILE* f) const noexcept { std::fclose(f); }
     };
     std::unique_ptr<std::FILE, Closer> f(std::fopen(name.c_str(), "rb"));
     if (!f) throw ParseError(name, 0, std::string("cannot open file: ") + std::strerror(errno));
     std::string data;
-    if (!ec) data.reserve(static_cast<std::size_t>(size));
+    data.reserve(static_cast<std::size_t>(size));
     char buf[1 << 16];
     for (;;) {
         const std::size_t got = std::fread(buf, 1, sizeof buf, f.get());
