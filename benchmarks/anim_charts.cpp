@@ -80,8 +80,8 @@ int interp_chart(const SmdSkeletonAnim& anim) {
             std::vector<BoneTransform> out(bones), ref(bones);
             for (std::size_t f = 0; f + stride < n; ++f) {
                 for (double t : ts) {
-                    interpolate_poses(anim.frames[f], anim.frames[f + stride], t, m, out);
-                    interpolate_poses(anim.frames[f], anim.frames[f + stride], t, Interpolation::slerp, ref);
+                    interpolate_poses(anim.frame(f), anim.frame(f + stride), t, m, out);
+                    interpolate_poses(anim.frame(f), anim.frame(f + stride), t, Interpolation::slerp, ref);
                     for (std::size_t b = 0; b < bones; ++b) {
                         const double e = angle_deg(out[b].rotation, ref[b].rotation);
                         sum += e;
@@ -89,7 +89,7 @@ int interp_chart(const SmdSkeletonAnim& anim) {
                         ++samples;
                     }
                     if (t == 0.5 && stride % 2 == 0) {
-                        const auto& key = anim.frames[f + stride / 2];
+                        const auto& key = anim.frame(f + stride / 2);
                         for (std::size_t b = 0; b < bones; ++b) {
                             const glm::dvec3 r(key[b].rotation.x, key[b].rotation.y, key[b].rotation.z);
                             const double e = angle_deg(out[b].rotation, euler_xyz_quat(r));
@@ -104,7 +104,7 @@ int interp_chart(const SmdSkeletonAnim& anim) {
             for (int pass = 0; pass < 9; ++pass) {  // the first passes warm up; best of 9
                 const auto t0 = std::chrono::steady_clock::now();
                 for (std::size_t f = 0; f + stride < n; ++f)
-                    for (double t : ts) interpolate_poses(anim.frames[f], anim.frames[f + stride], t, m, out);
+                    for (double t : ts) interpolate_poses(anim.frame(f), anim.frame(f + stride), t, m, out);
                 best = std::min(best, std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count());
             }
             const double per_bone = best / double(samples);

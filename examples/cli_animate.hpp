@@ -9,9 +9,11 @@
 // Frame k (k = 0 .. N-1) shows the animation at time (first + k) / fps seconds,
 // i.e. animation frame (first + k) · anim_fps / fps (slerp between frames,
 // looping); defaults: every frame of ANIM once (N = frame count) at the
-// animation's own rate. OUT must contain one printf integer conversion (%d,
-// %03d, ...) for the frame number k; an OUT without one writes every frame
-// to the same file.
+// animation's own rate. OUT holds one integer conversion for the frame
+// number k: %d, %Nd (space-padded) or %0Nd (zero-padded), width N <= 32, so
+// every frame gets its own file name; no other '%' may appear. An OUT without
+// a conversion is accepted only when one frame is rendered. Anything else is
+// a usage error (exit code 2).
 //
 // Placement. SMD models are Z-up in their own units (the HL2 goblin is ~17
 // units tall); OBJ scenes are Y-up. The character is turned Z-up -> Y-up,
@@ -59,9 +61,15 @@
 //       other std::exceptions for failures (exit code 1).
 //   const char* raykit_cli_animate_usage();
 //   raykit_cli::AnimateArgs raykit_cli::parse_animate_args(int argc, char** argv, int first_arg);
+//       Also checks OUT (a usage error for a bad pattern, or for --frames N > 1
+//       with an OUT without a conversion).
+//   std::string raykit_cli::animate_frame_name(const std::string& pattern, long k);
+//       OUT with its conversion replaced by k (OUT as is without one); throws
+//       RaykitCliAnimateUsageError for a pattern the rules above reject.
 #pragma once
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -88,6 +96,7 @@
 #include "raykit/render/render_cpu.hpp"
 #include "raykit/scene/build_options.hpp"
 #include "raykit/scene/scene.hpp"
+#include "cli_render.hpp"  // the render flags' shared limits (kMaxPixels)
 #if RAYKIT_CLI_HAVE_CL
 #include "raykit/anim/skin_hook.hpp"
 #include "raykit/cl.hpp"
@@ -151,6 +160,50 @@ inline double number(const std::string& opt, const char* s) {
 
 }  // namespace detail_animate
 
+inline constexpr int kAnimateMaxWidth = 32;  ///< widest %Nd field in OUT
+
+namespace detail_animate {
+
+/// The conversion of OUT: where it starts and ends ([at, end), end after the
+/// 'd'), zero padding and width. at == npos: none. Throws for a bad pattern.
+struct OutConversion {
+    std::size_t at = std::string::npos, end = std::string::npos;
+    bool zero = false;
+    int width = 0;
+};
+
+inline OutConversion out_conversion(const std::string& pattern) {
+    OutConversion c;
+    c.at = pattern.find('%');
+    if (c.at == std::string::npos) return c;
+    const auto bad = [&](const std::string& why) {
+        return RaykitCliAnimateUsageError("OUT '" + pattern + "': " + why +
+                                          " (one frame-number conversion: %d, %4d or %04d, width <= " +
+                                          std::to_string(kAnimateMaxWidth) + ")");
+    };
+    std::size_t e = c.at + 1;
+    while (e < pattern.size() && pattern[e] == '0') {
+        c.zero = true;
+        ++e;
+    }
+    const std::size_t digits = e;
+    while (e < pattern.size() && std::isdigit(static_cast<unsigned char>(pattern[e]))) ++e;
+    if (e >= pattern.size() || pattern[e] != 'd') throw bad("only an integer conversion is allowed");
+    if (e - digits > 2 || (e > digits && std::stoi(pattern.substr(digits, e - digits)) > kAnimateMaxWidth))
+        throw bad("field width " + pattern.substr(digits, e - digits) + " is too large");
+    c.width = e > digits ? std::stoi(pattern.substr(digits, e - digits)) : 0;
+    c.end = e + 1;
+    if (pattern.find('%', c.end) != std::string::npos) throw bad("a second '%'");
+    return c;
+}
+
+}  // namespace detail_animate
+
+/// Whether OUT has its frame-number conversion (throws for a bad pattern).
+inline bool animate_pattern_has_conversion(const std::string& pattern) {
+    return detail_animate::out_conversion(pattern).at != std::string::npos;
+}
+
 inline AnimateArgs parse_animate_args(int argc, char** argv, int first_arg) {
     using detail_animate::number;
     AnimateArgs a;
@@ -159,8 +212,15 @@ inline AnimateArgs parse_animate_args(int argc, char** argv, int first_arg) {
         if (i + n >= argc) throw RaykitCliAnimateUsageError(opt + " needs " + std::to_string(n) + " value(s)");
     };
     auto count = [&](const std::string& opt, double v, double lo) {
-        if (v < lo || v != std::floor(v) || v > 1e9)
-            throw RaykitCliAnimateUsageError(opt + " must be an integer >= " + std::to_string(int(lo)));
+        // the same ranges as `raykit render` (cli_render.hpp) where the flags are the same
+        const double hi = opt == "--threads"                      ? double(raykit::kMaxThreads)
+                          : opt == "--width" || opt == "--height" ? 65536.0
+                          : opt == "--spp"                        ? 65536.0
+                          : opt == "--max-depth"                  ? 1000.0
+                                                                  : 1e9;
+        if (v < lo || v != std::floor(v) || v > hi)
+            throw RaykitCliAnimateUsageError(opt + " must be an integer in " + std::to_string(long(lo)) + ".." +
+                                             std::to_string(long(hi)));
         return v;
     };
     for (int i = first_arg; i < argc; ++i) {
@@ -234,20 +294,23 @@ inline AnimateArgs parse_animate_args(int argc, char** argv, int first_arg) {
     a.reference = pos[0];
     a.animation = pos[1];
     a.output = pos[2];
+    if (!animate_pattern_has_conversion(a.output) && a.frames > 1)
+        throw RaykitCliAnimateUsageError("OUT '" + a.output + "' has no %d conversion but --frames " +
+                                         std::to_string(a.frames) + " would write every frame to that one file");
+    if (std::uint64_t(a.width) * a.height > raykit::detail::cli_render::kMaxPixels)
+        throw RaykitCliAnimateUsageError("the image must be at most " +
+                                         std::to_string(raykit::detail::cli_render::kMaxPixels) + " pixels");
     return a;
 }
 
 /// OUT with its one integer conversion filled in with k (or OUT as is).
+/// Distinct frame numbers give distinct names (the width only pads).
 inline std::string animate_frame_name(const std::string& pattern, long k) {
-    const std::size_t at = pattern.find('%');
-    if (at == std::string::npos) return pattern;
-    std::size_t e = at + 1;
-    while (e < pattern.size() && (std::isdigit(static_cast<unsigned char>(pattern[e])) || pattern[e] == '0')) ++e;
-    if (e >= pattern.size() || pattern[e] != 'd')
-        throw RaykitCliAnimateUsageError("OUT: only an integer conversion (%d, %03d, ...) is allowed");
-    char buf[64];
-    std::snprintf(buf, sizeof buf, ("%" + pattern.substr(at + 1, e - at - 1) + "ld").c_str(), k);
-    return pattern.substr(0, at) + buf + pattern.substr(e + 1);
+    const detail_animate::OutConversion c = detail_animate::out_conversion(pattern);
+    if (c.at == std::string::npos) return pattern;
+    char buf[64];  // width <= 32 plus a long's digits and sign
+    std::snprintf(buf, sizeof buf, c.zero ? "%0*ld" : "%*ld", c.width, k);
+    return pattern.substr(0, c.at) + buf + pattern.substr(c.end);
 }
 
 namespace detail_animate {
@@ -321,8 +384,7 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
     using namespace raykit;
     using clock = std::chrono::steady_clock;
     auto ms = [](clock::time_point a) { return std::chrono::duration<double, std::milli>(clock::now() - a).count(); };
-    const raykit_cli::AnimateArgs a = raykit_cli::parse_animate_args(argc, argv, first_arg);
-    (void)raykit_cli::animate_frame_name(a.output, 0);  // checks the pattern
+    const raykit_cli::AnimateArgs a = raykit_cli::parse_animate_args(argc, argv, first_arg);  // checks OUT too
 
     const SmdModel model = load_smd_reference(a.reference);
     const SmdSkeletonAnim anim = load_smd_animation(a.animation, model);
@@ -381,10 +443,13 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
     const auto m0 = static_cast<std::uint32_t>(rm.materials.size());
     const bool had_normals = !rm.normals.empty() || v0 == 0;
     if (!had_normals) rm.normals.assign(v0, vec3(0.0f));
-    if (rm.texcoords.empty() && !cm.texcoords.empty()) rm.texcoords.assign(v0, vec2(0.0f));
+    // Texture coordinates: kept when either part has them (the other part gets zeros). Testing
+    // rm.texcoords after padding it would drop the character's when there is no static scene (v0 = 0).
+    const bool with_uv = !rm.texcoords.empty() || !cm.texcoords.empty();
     rm.positions.resize(v0 + nv);
     rm.normals.resize(v0 + nv, vec3(0.0f));
-    if (!rm.texcoords.empty()) {
+    if (with_uv) {
+        rm.texcoords.resize(v0, vec2(0.0f));
         for (std::size_t i = 0; i < nv; ++i) rm.texcoords.push_back(cm.texcoords.empty() ? vec2(0.0f) : cm.texcoords[i]);
     }
     for (const Triangle& t : cm.triangles) {
@@ -406,6 +471,9 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
 
     const double fps = a.fps > 0.0 ? a.fps : double(anim.fps > 0.0f ? anim.fps : 30.0f);
     const long frames = a.frames >= 0 ? a.frames : long(anim.frame_count());
+    if (frames > 1 && !raykit_cli::animate_pattern_has_conversion(a.output))
+        throw RaykitCliAnimateUsageError("OUT '" + a.output + "' has no %d conversion but " + std::to_string(frames) +
+                                         " frames would be written to that one file (add %03d, or --frames 1)");
     auto matrices_at = [&](long k, double* anim_frame) {
         const double f = double(a.first + k) * double(anim.fps > 0.0f ? anim.fps : 30.0f) / fps;
         *anim_frame = f;

@@ -1,5 +1,7 @@
 // Tests for raykit/anim/: skeleton, interpolation, packed linear blend
-// skinning, and the `raykit skin` command (examples/cli_skin.hpp).
+// skinning, the `raykit skin` command (examples/cli_skin.hpp) and the
+// arguments of `raykit animate` (examples/cli_animate.hpp; its rendering is
+// tested through the executable in test_cli.cpp).
 //
 // The oracle is written independently of the library: its own SMD reader
 // (std::istringstream), rotation matrices built from explicit sin/cos
@@ -19,10 +21,12 @@
 #include <map>
 #include <numbers>
 #include <random>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "../examples/cli_animate.hpp"
 #include "../examples/cli_skin.hpp"
 #include "raykit/anim/interpolate.hpp"
 #include "raykit/anim/skeleton.hpp"
@@ -172,7 +176,7 @@ struct OracleCorner {
 struct OracleFile {
     std::vector<std::string> name;
     std::vector<int> parent;
-    std::vector<std::vector<Pose6>> frames;        // [frame][bone], file order of `time` lines
+    std::vector<std::vector<Pose6>> frames;        // [frame][bone], frame = time - first time
     std::vector<std::vector<bool>> present;        // [frame][bone]: set in that frame or before
     std::vector<OracleCorner> corners;
 };
@@ -183,6 +187,7 @@ OracleFile oracle_read(const fs::path& file) {
     std::string line;
     std::string block;
     int corner = -1;
+    long first_time = 0;
     while (std::getline(in, line)) {
         if (!line.empty() && line.back() == '\r') line.pop_back();
         std::istringstream s(line);
@@ -208,10 +213,15 @@ OracleFile oracle_read(const fs::path& file) {
             o.parent[static_cast<std::size_t>(id)] = parent;
         } else if (block == "skeleton") {
             if (first == "time") {
+                // Every frame number gets its own copy: a gap repeats the frame before it.
+                long t = 0;
+                s >> t;
                 if (o.frames.empty()) {
+                    first_time = t;
                     o.frames.emplace_back(o.name.size());
                     o.present.emplace_back(o.name.size(), false);
-                } else {
+                }
+                while (static_cast<long>(o.frames.size()) <= t - first_time) {
                     o.frames.push_back(o.frames.back());
                     o.present.push_back(o.present.back());
                 }
@@ -740,7 +750,7 @@ void check_model(const Model& mdl, double frame_step, bool print) {
     const SmdModel m = raykit::load_smd_reference(mdl.ref);
     const SmdSkeletonAnim a = raykit::load_smd_animation(mdl.anim, m);
     const OracleFile oref = oracle_read(mdl.ref), oanim = oracle_read(mdl.anim);
-    ASSERT_EQ(oanim.frames.size(), a.frames.size());
+    ASSERT_EQ(oanim.frames.size(), a.frame_count());
     const double extent = extent_of(oref);
     const double tol = 1e-4 * extent;
     // The bind pose first.
@@ -750,7 +760,7 @@ void check_model(const Model& mdl, double frame_step, bool print) {
     EXPECT_LE(bind, 1e-6 * extent);
     double worst[2] = {0, 0};
     std::size_t samples = 0;
-    const double last = static_cast<double>(a.frames.size() - 1);
+    const double last = static_cast<double>(a.frame_count() - 1);
     for (double f = 0; f <= last; f += frame_step) {
         for (double frame : {f, std::min(f + 0.5, last)}) {
             for (int mode = 0; mode < 2; ++mode) {
@@ -775,6 +785,73 @@ void check_model(const Model& mdl, double frame_step, bool print) {
 
 TEST(AnimSkinning, FixtureAgreesWithOracleAtFramesAndHalfFrames) {
     check_model({fixture_dir() / "ref_weights.SMD", fixture_dir() / "anim_weights.smd"}, 0.25, true);
+}
+
+/// A scratch folder, removed with its contents at the end of the test.
+struct ScratchDir {
+    fs::path path;
+    ScratchDir() {
+        std::random_device rd;
+        path = fs::temp_directory_path() / ("raykit_test_anim_" + std::to_string(rd()) + std::to_string(rd()));
+        fs::create_directories(path);
+    }
+    ~ScratchDir() {
+        std::error_code ec;
+        fs::remove_all(path, ec);
+    }
+};
+
+/// The fixture animation with its `time` lines renumbered (0, 1, 2, 3 -> the given times).
+std::string retimed_fixture_anim(const std::array<int, 4>& times) {
+    std::ifstream in(fixture_dir() / "anim_weights.smd", std::ios::binary);
+    std::string text, line;
+    int k = 0;
+    while (std::getline(in, line)) {
+        if (line.rfind("time ", 0) == 0) line = "time " + std::to_string(times.at(static_cast<std::size_t>(k++)));
+        text += line + "\n";
+    }
+    return text;
+}
+
+TEST(AnimSkinning, GappedAnimationAgreesWithOracle) {
+    // Keys at frames 0, 3, 4, 9 (times 5, 8, 9, 14): the oracle spells every frame out.
+    ScratchDir dir;
+    const fs::path anim = dir.path / "gapped.smd";
+    std::ofstream(anim, std::ios::binary) << retimed_fixture_anim({5, 8, 9, 14});
+    const SmdModel m = raykit::load_smd_reference(fixture_dir() / "ref_weights.SMD");
+    const SmdSkeletonAnim a = raykit::load_smd_animation(anim, m);
+    EXPECT_EQ(a.key_count(), 4u);
+    EXPECT_EQ(a.frame_count(), 10u);
+    check_model({fixture_dir() / "ref_weights.SMD", anim}, 0.25, false);
+}
+
+TEST(AnimInterpolate, GapsSampleAsTheSpelledOutFrames) {
+    // The same keys stored once (gapped) and as one key per frame (times empty):
+    // sample_frame agrees bit for bit, clamped and looping, both schemes.
+    const SmdModel m = raykit::load_smd_reference(fixture_dir() / "ref_weights.SMD");
+    const SmdSkeletonAnim g =
+        raykit::parse_smd_animation(retimed_fixture_anim({0, 3, 4, 9}), "gapped.smd", m.bones, m.bind_pose);
+    ASSERT_EQ(g.times, (std::vector<std::uint32_t>{0, 3, 4, 9}));
+    SmdSkeletonAnim dense;
+    for (std::size_t f = 0; f < g.frame_count(); ++f) dense.frames.push_back(g.frame(f));
+    ASSERT_EQ(dense.frame_count(), 10u);
+    EXPECT_EQ(dense.frames[2][2].rotation, g.frames[0][2].rotation);  // frame 2 lies in the gap after key 0
+    EXPECT_NE(dense.frames[3][2].rotation, g.frames[0][2].rotation);
+    for (double f = -2.0; f < 13.0; f += 0.125) {
+        for (WrapMode w : {WrapMode::clamp, WrapMode::loop}) {
+            for (Interpolation i : {Interpolation::slerp, Interpolation::euler}) {
+                const auto x = raykit::sample_frame(g, f, i, w), y = raykit::sample_frame(dense, f, i, w);
+                ASSERT_EQ(x.size(), y.size());
+                for (std::size_t b = 0; b < x.size(); ++b) {
+                    ASSERT_EQ(std::memcmp(&x[b], &y[b], sizeof x[b]), 0) << "frame " << f << " bone " << b;
+                }
+            }
+        }
+    }
+    // A hand-made animation with inconsistent times is refused, not read out of bounds.
+    SmdSkeletonAnim bad = g;
+    bad.times.pop_back();
+    EXPECT_THROW(raykit::sample_frame(bad, 1.0), std::invalid_argument);
 }
 
 TEST(AnimSkinning, DwarfAgreesWithOracleAtFramesAndHalfFrames) {
@@ -853,6 +930,70 @@ TEST(AnimCli, BindPoseReproducesTheFile) {
     raykit_cli::SkinArgs a;
     a.reference = tri.string();
     EXPECT_EQ(raykit_cli::skin_corners_text(a, nullptr), "0 0 0\n1 0 0\n1 1 0\n");
+}
+
+raykit_cli::AnimateArgs animate_args(std::vector<std::string> a) {
+    a.insert(a.begin(), {"raykit", "animate"});
+    std::vector<char*> argv;
+    for (std::string& x : a) argv.push_back(x.data());
+    return raykit_cli::parse_animate_args(static_cast<int>(argv.size()), argv.data(), 2);
+}
+
+TEST(AnimateCli, OutputPatternGivesEveryFrameItsOwnName) {
+    using raykit_cli::animate_frame_name;
+    EXPECT_EQ(animate_frame_name("out_%03d.png", 7), "out_007.png");
+    EXPECT_EQ(animate_frame_name("out_%d.png", 1234), "out_1234.png");
+    EXPECT_EQ(animate_frame_name("out_%4d.png", 12), "out_  12.png");
+    EXPECT_EQ(animate_frame_name("%0003d", 5), "005");
+    EXPECT_EQ(animate_frame_name("f%032d", 9), "f" + std::string(31, '0') + "9");
+    EXPECT_EQ(animate_frame_name("still.png", 3), "still.png");
+    // Every accepted pattern names frames 0..N distinctly (no truncation).
+    for (const char* p : {"a%d", "a%1d", "a%05d", "a%32d", "a%032d", "%d.png"}) {
+        std::set<std::string> names;
+        for (long k : {0L, 1L, 9L, 10L, 99L, 100L, 12345L, 999999999L, 1000000000L, 2147483647L, 9999999999L}) {
+            names.insert(animate_frame_name(p, k));
+        }
+        EXPECT_EQ(names.size(), 11u) << p;
+    }
+    using E = RaykitCliAnimateUsageError;
+    EXPECT_THROW(animate_frame_name("out_%3000000000d.png", 0), E);  // one name for every frame before
+    EXPECT_THROW(animate_frame_name("out_%33d.png", 0), E);
+    EXPECT_THROW(animate_frame_name("out_%0100d.png", 0), E);
+    EXPECT_THROW(animate_frame_name("out_%s.png", 0), E);
+    EXPECT_THROW(animate_frame_name("out_%-3d.png", 0), E);
+    EXPECT_THROW(animate_frame_name("out_%3.2d.png", 0), E);
+    EXPECT_THROW(animate_frame_name("out_%d_%d.png", 0), E);
+    EXPECT_THROW(animate_frame_name("100%_%d.png", 0), E);
+    EXPECT_THROW(animate_frame_name("out_%", 0), E);
+    try {
+        animate_frame_name("out_%3000000000d.png", 0);
+    } catch (const E& e) {
+        EXPECT_NE(std::string(e.what()).find("field width 3000000000 is too large"), std::string::npos) << e.what();
+    }
+    // The arguments are checked when parsed.
+    EXPECT_THROW(animate_args({"r.smd", "a.smd", "out_%3000000000d.png"}), E);
+    EXPECT_THROW(animate_args({"r.smd", "a.smd", "out.png", "--frames", "2"}), E);
+    EXPECT_NO_THROW(animate_args({"r.smd", "a.smd", "out.png", "--frames", "1"}));
+    EXPECT_EQ(animate_args({"r.smd", "a.smd", "o_%02d.png", "--frames", "3"}).output, "o_%02d.png");
+}
+
+// The flags animate shares with render have render's ranges (issue 12: --threads 5000 was
+// accepted, 1e9 x 1e9 images asked for exabytes).
+TEST(AnimateCli, SharedFlagsHaveRendersRanges) {
+    using E = RaykitCliAnimateUsageError;
+    auto with = [](std::vector<std::string> extra) {
+        std::vector<std::string> a = {"r.smd", "a.smd", "o_%02d.png"};
+        a.insert(a.end(), extra.begin(), extra.end());
+        return animate_args(a);
+    };
+    EXPECT_EQ(with({"--threads", "1024"}).threads, 1024u);
+    EXPECT_THROW(with({"--threads", "1025"}), E);
+    EXPECT_THROW(with({"--threads", "4294967296"}), E);
+    EXPECT_EQ(with({"--width", "65536", "--height", "256"}).width, 65536u);
+    EXPECT_THROW(with({"--width", "65537"}), E);
+    EXPECT_THROW(with({"--width", "65536", "--height", "65536"}), E);  // over 2^24 pixels
+    EXPECT_THROW(with({"--spp", "65537"}), E);
+    EXPECT_THROW(with({"--max-depth", "1001"}), E);
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #include "raykit.hpp"
 #include "raykit/io/obj.hpp"
 #include "raykit/io/obj_write.hpp"
+#include "raykit/render/texture.hpp"
 #include "raykit/scene/generate.hpp"
 
 #ifndef RAYKIT_CLI_PATH
@@ -332,6 +333,82 @@ fs::path bounds_scene() {
 
 }  // namespace
 
+// ------------------------------------------------------------------ raykit animate
+// (examples/cli_animate.hpp; its argument rules are unit-tested in test_anim.cpp)
+
+namespace {
+
+/// An 8 x 8 24-bit BMP: red in the centre 4 x 4 texels, black elsewhere, so
+/// uv (0.5, 0.5) samples red and uv (0, 0) (where lost texture coordinates
+/// sample: a corner, blended with the other corners by wrap addressing) black.
+void write_centre_red_bmp(const fs::path& p) {
+    const int w = 8, h = 8;
+    std::string px;
+    for (int y = h - 1; y >= 0; --y) {  // bottom-up rows
+        for (int x = 0; x < w; ++x) {
+            const bool red = x >= 2 && x <= 5 && y >= 2 && y <= 5;
+            px += std::string{'\0', '\0', red ? '\xC8' : '\0'};  // B G R
+        }
+    }
+    auto u32 = [](std::uint32_t v) { return std::string{char(v), char(v >> 8), char(v >> 16), char(v >> 24)}; };
+    auto u16 = [](std::uint16_t v) { return std::string{char(v), char(v >> 8)}; };
+    std::string bmp = "BM" + u32(54 + std::uint32_t(px.size())) + u32(0) + u32(54);
+    bmp += u32(40) + u32(w) + u32(h) + u16(1) + u16(24) + u32(0) + u32(std::uint32_t(px.size())) + u32(2835) +
+           u32(2835) + u32(0) + u32(0);
+    write(p, bmp + px);
+}
+
+/// A 2-unit cube on one bone (Half-Life 1 vertex lines), every corner at uv (0.5, 0.5).
+std::string textured_cube_smd(const std::string& texture) {
+    struct Face {
+        int n[3];
+        int q[4][3];
+    };
+    const Face faces[6] = {
+        {{1, 0, 0}, {{1, -1, -1}, {1, 1, -1}, {1, 1, 1}, {1, -1, 1}}},
+        {{-1, 0, 0}, {{-1, -1, -1}, {-1, -1, 1}, {-1, 1, 1}, {-1, 1, -1}}},
+        {{0, 1, 0}, {{-1, 1, -1}, {-1, 1, 1}, {1, 1, 1}, {1, 1, -1}}},
+        {{0, -1, 0}, {{-1, -1, -1}, {1, -1, -1}, {1, -1, 1}, {-1, -1, 1}}},
+        {{0, 0, 1}, {{-1, -1, 1}, {1, -1, 1}, {1, 1, 1}, {-1, 1, 1}}},
+        {{0, 0, -1}, {{-1, -1, -1}, {-1, 1, -1}, {1, 1, -1}, {1, -1, -1}}},
+    };
+    std::ostringstream s;
+    s << "version 1\nnodes\n0 \"root\" -1\nend\nskeleton\ntime 0\n0 0 0 0 0 0 0\nend\ntriangles\n";
+    for (const Face& f : faces) {
+        const int tris[2][3] = {{0, 1, 2}, {0, 2, 3}};
+        for (const auto& tri : tris) {
+            s << texture << "\n";
+            for (int i : tri) {
+                const int* p = f.q[i];
+                s << "0 " << p[0] << " " << p[1] << " " << p[2] + 1 << " " << f.n[0] << " " << f.n[1] << " " << f.n[2]
+                  << " 0.5 0.5\n";
+            }
+        }
+    }
+    s << "end\n";
+    return s.str();
+}
+
+/// Pixels of a PNG: total, not black, and pure red (the texture's colour only).
+struct PixelCount {
+    std::size_t total = 0, lit = 0, red = 0;
+};
+PixelCount count_pixels(const fs::path& png) {
+    std::vector<std::string> warnings;
+    const Texture img = load_texture(png, /*srgb=*/false, &warnings);
+    EXPECT_FALSE(img.placeholder) << png << ": " << (warnings.empty() ? "" : warnings[0]);
+    PixelCount c;
+    for (std::size_t i = 0; i + 3 < img.rgba.size(); i += 4) {
+        const int r = img.rgba[i], g = img.rgba[i + 1], b = img.rgba[i + 2];
+        ++c.total;
+        if (r + g + b > 0) ++c.lit;
+        if (r > 20 && g == 0 && b == 0) ++c.red;
+    }
+    return c;
+}
+
+}  // namespace
+
 TEST(CliBounds, ThreadCountsAboveTheLimitAreUsageErrors) {
     const std::string s = bounds_scene().string();
     const fs::path rays = tmpdir() / "bounds_rays.txt", hits = tmpdir() / "bounds_hits.txt";
@@ -485,4 +562,63 @@ TEST(CliBounds, LibraryErrorsNeverPrintUsage) {
     for (const std::string cmd : {"info", "check", "render"})
         expect_one_error_line(run_bounded(cmd + " " + bad.string() + (cmd == "render" ? " " + png : std::string())), 1,
                               "bounds_bad.obj:2", cmd + " with a bad face");
+}
+
+TEST(CliAnimate, CharacterWithoutASceneKeepsItsTexture) {
+    // Without --scene the render mesh started with no texture coordinates and
+    // dropped the character's: every hit sampled uv (0, 0), black here.
+    const fs::path dir = tmpdir() / "animate_cube";
+    fs::create_directories(dir);
+    write_centre_red_bmp(dir / "skin.bmp");
+    const fs::path smd = dir / "cube.smd";
+    write(smd, textured_cube_smd("skin.bmp"));
+    const Result r = run("animate " + smd.string() + " " + smd.string() + " " + (dir / "cube_%d.png").string() +
+                         " --width 64 --height 48 --camera 2.5 2.5 2.5 0 0.9 0");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.err.find("warning"), std::string::npos) << r.err;
+    const PixelCount c = count_pixels(dir / "cube_0.png");
+    EXPECT_EQ(c.total, 64u * 48u);
+    EXPECT_GT(c.red, c.total / 10) << "the cube should cover a good part of the frame in the texture's red";
+    EXPECT_EQ(c.lit, c.red) << "every lit pixel has the texture's colour (red, no green or blue)";
+}
+
+TEST(CliAnimate, GoblinFrameIsNotBlack) {
+#ifdef RAYKIT_SHARED_DATA_DIR
+    const fs::path dir = fs::path(RAYKIT_SHARED_DATA_DIR) / "smd" / "hl2_goblin";
+#else
+    const fs::path dir;
+#endif
+    if (dir.empty() || !fs::exists(dir / "Goblin_Reference.smd")) GTEST_SKIP() << "shared SMD data not found";
+    const fs::path out = tmpdir() / "goblin_%03d.png";
+    const Result r = run("animate " + (dir / "Goblin_Reference.smd").string() + " " +
+                         (dir / "Goblin_Anim.smd").string() + " " + out.string() +
+                         " --frames 1 --first 100 --width 96 --height 72");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const PixelCount c = count_pixels(tmpdir() / "goblin_100.png");
+    EXPECT_GT(c.lit, c.total / 100) << "the goblin renders black";
+}
+
+TEST(CliAnimate, OutputPatternNamesEveryFrame) {
+    const fs::path dir = tmpdir() / "animate_pattern";
+    fs::create_directories(dir);
+    write_centre_red_bmp(dir / "skin.bmp");
+    const fs::path ref = dir / "cube.smd", anim = dir / "gapped.smd";
+    write(ref, textured_cube_smd("skin.bmp"));
+    // Keys at times 4 and 6: three frames (the middle one holds the first key).
+    write(anim, "nodes\n0 \"root\" -1\nend\nskeleton\ntime 4\n0 0 0 0 0 0 0\ntime 6\n0 0 0 1 0 0 0.5\nend\n");
+    const std::string base = "animate " + ref.string() + " " + anim.string() + " ";
+    const std::string small = " --width 16 --height 12";
+    expect_clean_error(run(base + (dir / "f_%3000000000d.png").string() + small), 2, "field width 3000000000");
+    expect_clean_error(run(base + (dir / "f_%40d.png").string() + small), 2, "field width 40 is too large");
+    expect_clean_error(run(base + (dir / "f_%s.png").string() + small), 2, "only an integer conversion");
+    expect_clean_error(run(base + (dir / "one.png").string() + small + " --frames 2"), 2, "no %d conversion");
+    expect_clean_error(run(base + (dir / "one.png").string() + small), 2, "3 frames would be written");
+    EXPECT_FALSE(fs::exists(dir / "one.png"));
+    Result r = run(base + (dir / "one.png").string() + small + " --frames 1");
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(fs::exists(dir / "one.png"));
+    r = run(base + (dir / "f_%02d.png").string() + small);
+    ASSERT_EQ(r.code, 0) << r.err;
+    for (const char* f : {"f_00.png", "f_01.png", "f_02.png"}) EXPECT_TRUE(fs::exists(dir / f)) << f;
+    EXPECT_FALSE(fs::exists(dir / "f_03.png"));
 }

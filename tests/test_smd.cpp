@@ -487,13 +487,120 @@ TEST(SmdParse, TimeGapsRepeatTheLastFrame) {
     const SmdModel ref = parse_ref(text);
     EXPECT_EQ(ref.bind_pose[0].position.x, 1.0f);
     const SmdSkeletonAnim a = raykit::parse_smd_animation(text, kName, ref.bones);
-    ASSERT_EQ(a.frames.size(), 5u);  // times 2..6
+    // Three keys (one per `time` line) at frames 0, 1, 4; the animation spans frames 0..4 (times 2..6).
+    ASSERT_EQ(a.frames.size(), 3u);
+    EXPECT_EQ(a.times, (std::vector<std::uint32_t>{0, 1, 4}));
+    ASSERT_EQ(a.frame_count(), 5u);
     const float expect_a[5] = {1, 3, 3, 3, 3};
     const float expect_b[5] = {2, 2, 2, 2, 4};
-    for (int f = 0; f < 5; ++f) {
-        EXPECT_EQ(a.frames[f][0].position.x, expect_a[f]) << f;
-        EXPECT_EQ(a.frames[f][1].position.x, expect_b[f]) << f;
+    const std::size_t expect_key[5] = {0, 1, 1, 1, 2};
+    for (std::size_t f = 0; f < 5; ++f) {
+        EXPECT_EQ(a.key_of_frame(f), expect_key[f]) << f;
+        EXPECT_EQ(a.frame(f)[0].position.x, expect_a[f]) << f;
+        EXPECT_EQ(a.frame(f)[1].position.x, expect_b[f]) << f;
     }
+    EXPECT_THROW((void)a.frame(5), std::out_of_range);
+}
+
+TEST(SmdParse, GapsCostNothingAndMatchTheSpelledOutFile) {
+    // Key frames at times 0, 2e9 and 2e9 + 3: three keys however long the gaps.
+    const std::vector<std::string> head = {"nodes", "0 \"a\" -1", "1 \"b\" 0", "end", "skeleton"};
+    auto lines = head;
+    lines.insert(lines.end(), {"time 5", "0 1 0 0 0 0 0.5", "time 2000000005", "1 0 2 0 0 0 -1", "time 2000000008",
+                               "0 3 0 0 0.25 0 0", "end"});
+    const SmdModel ref = parse_ref(join_lines(head) + "time 0\n0 0 0 0 0 0 0\n1 0 0 0 0 0 0\nend\n");
+    const SmdSkeletonAnim a = raykit::parse_smd_animation(join_lines(lines), kName, ref.bones, ref.bind_pose);
+    EXPECT_EQ(a.frame_count(), 2000000004u);
+    EXPECT_EQ(a.key_count(), 3u);
+    EXPECT_EQ(a.times, (std::vector<std::uint32_t>{0, 2000000000u, 2000000003u}));
+    EXPECT_EQ(a.frame(1999999999)[0].position.x, 1.0f);
+    EXPECT_EQ(a.frame(2000000000)[1].position.y, 2.0f);
+    EXPECT_EQ(a.frame(2000000002)[1].position.y, 2.0f);
+    EXPECT_EQ(a.frame(2000000003)[0].position.x, 3.0f);
+
+    // A short gapped file equals, frame by frame, the file that spells every frame out.
+    auto gapped = head, spelled = head;
+    gapped.insert(gapped.end(), {"time 1", "0 1 0 0 0 0 0.5", "1 0 1 0 0.5 0 0", "time 4", "0 2 0 0 0 0 -3",
+                                 "time 5", "time 7", "1 0 3 0 -0.5 1 0", "end"});
+    spelled.insert(spelled.end(), {"time 1", "0 1 0 0 0 0 0.5", "1 0 1 0 0.5 0 0", "time 2", "time 3", "time 4",
+                                   "0 2 0 0 0 0 -3", "time 5", "time 6", "time 7", "1 0 3 0 -0.5 1 0", "end"});
+    const SmdSkeletonAnim g = raykit::parse_smd_animation(join_lines(gapped), kName, ref.bones, ref.bind_pose);
+    const SmdSkeletonAnim s = raykit::parse_smd_animation(join_lines(spelled), kName, ref.bones, ref.bind_pose);
+    EXPECT_EQ(g.key_count(), 4u);
+    ASSERT_EQ(s.key_count(), 7u);
+    EXPECT_EQ(s.times, (std::vector<std::uint32_t>{0, 1, 2, 3, 4, 5, 6}));
+    ASSERT_EQ(g.frame_count(), s.frame_count());
+    for (std::size_t f = 0; f < s.frame_count(); ++f) {
+        for (std::size_t b = 0; b < 2; ++b) {
+            EXPECT_EQ(g.frame(f)[b].position, s.frames[f][b].position) << f;
+            EXPECT_EQ(g.frame(f)[b].rotation, s.frames[f][b].rotation) << f;
+        }
+    }
+}
+
+TEST(SmdParse, TimeIsBoundedAndKeysAreCapped) {
+    auto lines = with(kBase, 7, "time 2147483647");
+    EXPECT_EQ(parse_ref(join_lines(lines)).bones.size(), 2u);
+    expect_error([&] { parse_ref(join_lines(with(kBase, 7, "time 2147483648"))); }, kName, 7,
+                 "time 2147483648 out of range (0..2147483647)");
+    expect_error([&] { parse_ref(join_lines(with(kBase, 7, "time 99999999999999999999"))); }, kName, 7,
+                 "out of range");
+
+    // 4096 reference bones: at most 2^24 / 4096 = 4096 key frames. The 4097th
+    // `time` line fails, after any earlier error, without storing a key.
+    std::ostringstream ref_text, anim_text;
+    ref_text << "nodes\n";
+    for (int b = 0; b < 4096; ++b) ref_text << b << " \"b" << b << "\" -1\n";
+    ref_text << "end\nskeleton\ntime 0\nend\n";
+    const SmdModel big = parse_ref(ref_text.str());
+    ASSERT_EQ(big.bones.size(), 4096u);
+    anim_text << "nodes\n0 \"b7\" -1\nend\nskeleton\n";
+    for (int t = 0; t < 4096; ++t) anim_text << "time " << t << "\n";
+    const std::string anim = anim_text.str();
+    const SmdSkeletonAnim ok =
+        raykit::parse_smd_animation(anim.substr(0, anim.find("time 100\n")) + "end\n", kName, big.bones);
+    EXPECT_EQ(ok.key_count(), 100u);
+    EXPECT_EQ(ok.frames.back().size(), 4096u);
+    const std::string over = anim + "0 1 2 3 4 5 6\ntime 4096\nend\n";
+    expect_error([&] { raykit::parse_smd_animation(over, kName, big.bones); }, kName, 4102,
+                 "animation too large: more than 16777216 bone poses (4097 key frames x 4096 reference bones)");
+    // An earlier error still comes first.
+    const std::string earlier = anim + "0 1 2 3 4 5 x\ntime 4096\nend\n";
+    expect_error([&] { raykit::parse_smd_animation(earlier, kName, big.bones); }, kName, 4101, "malformed number 'x'");
+}
+
+TEST(SmdParse, ManyBonesTimesAndLinksStayLinear) {
+    // A reference with 20,000 bones and 20,000 `time` lines: it keeps one frame
+    // (the old loader copied every frame: 9.6 GB).
+    std::ostringstream out;
+    out << "nodes\n";
+    const int nb = 20000;
+    for (int b = 0; b < nb; ++b) out << b << " \"b" << b << "\" " << b - 1 << "\n";
+    out << "end\nskeleton\n";
+    for (int t = 0; t < 20000; ++t) out << "time " << t << "\n" << t % nb << " 1 0 0 0 0 0\n";
+    out << "end\ntriangles\nmat\n";
+    // One vertex line with 3 links per bone (60,000 links): weights add per bone.
+    out << "0 0 0 0 0 0 1 0 0 " << 3 * nb;
+    for (int k = 0; k < 3 * nb; ++k) out << " " << k % nb << " 1";
+    out << "\n0 1 0 0 0 0 1 0 0\n0 0 1 0 0 0 1 0 0\nend\n";
+    const std::string text = out.str();
+    const SmdModel m = parse_ref(text);
+    ASSERT_EQ(m.bones.size(), static_cast<std::size_t>(nb));
+    EXPECT_EQ(m.bind_pose[0].position.x, 1.0f);
+    EXPECT_EQ(m.bind_pose[1].position.x, 0.0f);  // listed only in later frames
+    ASSERT_EQ(m.weights[0].links.size(), static_cast<std::size_t>(nb));
+    double sum = 0.0;
+    for (std::size_t k = 0; k < m.weights[0].links.size(); ++k) {
+        EXPECT_EQ(m.weights[0].links[k].bone, k);
+        sum += m.weights[0].links[k].weight;
+    }
+    EXPECT_NEAR(sum, 1.0, 1e-4);
+    EXPECT_NEAR(m.weights[0].links[123].weight, 1.0 / nb, 1e-9);
+    // Duplicate links whose float sum would overflow stay finite.
+    const SmdModel h = parse_ref(join_lines(with(kBase, 15, "0 0 1 0 0 0 1 0 1 3 0 3e38 0 3e38 1 3e38")));
+    ASSERT_EQ(h.weights[2].links.size(), 2u);
+    EXPECT_NEAR(h.weights[2].links[0].weight, 2.0f / 3.0f, 1e-6f);
+    EXPECT_NEAR(h.weights[2].links[1].weight, 1.0f / 3.0f, 1e-6f);
 }
 
 TEST(SmdParse, AnimationSkipsTriangles) {
@@ -511,6 +618,55 @@ TEST(SmdParse, NumberForms) {
     EXPECT_EQ(m.mesh.positions[0], vec3(0.5f, -0.5f, 5.0f));
     EXPECT_EQ(m.mesh.normals[0], vec3(1e-05f, 100.0f, -0.0f));
     EXPECT_EQ(m.mesh.texcoords[0], raykit::vec2(0.25f, 0.75f));
+}
+
+TEST(SmdTextures, EachFolderIsListedOncePerLoad) {
+    // 600 files, 1,800 materials: each file named by its exact name, in another
+    // case, and without its extension; plus a subfolder and a missing texture.
+    TempDir dir;
+    const int n = 600;
+    char name[64];
+    for (int i = 0; i < n; ++i) {
+        std::snprintf(name, sizeof name, "tex_%03d.%s", i, i % 2 ? "bmp" : "PNG");
+        dir.write(name, "x");
+    }
+    fs::create_directories(dir.path() / "Sub");
+    dir.write("Sub/stone.jpg", "x");
+    dir.write("Sub/stone.txt", "x");
+    std::string text = join_lines(first_lines(kBase, 11));
+    std::vector<std::pair<std::string, std::string>> expect;  // material -> map_kd file name
+    auto add = [&](const std::string& mat, const std::string& file) {
+        text += mat + "\n0 0 0 0 0 0 1 0 0\n1 1 0 0 0 0 1 1 0\n0 0 1 0 0 0 1 0 1\n";
+        expect.emplace_back(mat, file);
+    };
+    for (int i = 0; i < n; ++i) {
+        std::snprintf(name, sizeof name, "tex_%03d.%s", i, i % 2 ? "bmp" : "PNG");
+        add(name, name);  // exact
+        std::string upper = name;
+        for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+        add(upper, name);  // case-insensitive
+        std::snprintf(name, sizeof name, "Tex_%03d", i);
+        char file[64];
+        std::snprintf(file, sizeof file, "tex_%03d.%s", i, i % 2 ? "bmp" : "PNG");
+        add(name, file);  // extension added
+    }
+    add("Sub/STONE", "Sub/stone.jpg");
+    add("absent", "absent");
+    text += "end\n";
+    const SmdModel m = parse_ref(text, dir.path());
+    ASSERT_EQ(m.mesh.materials.size(), expect.size());
+    for (std::size_t i = 0; i < expect.size(); ++i) {
+        EXPECT_EQ(fs::path(m.mesh.materials[i].map_kd), dir.path() / expect[i].second) << expect[i].first;
+    }
+    ASSERT_EQ(m.mesh.warnings.size(), 1u);
+    EXPECT_NE(m.mesh.warnings[0].find("texture 'absent' not found"), std::string::npos) << m.mesh.warnings[0];
+
+    raykit::SmdTextureFinder finder(dir.path());
+    for (const auto& [mat, file] : expect) (void)finder.find(mat);
+    EXPECT_EQ(finder.listings(), 2u);  // the folder and Sub, once each
+    EXPECT_EQ(finder.find("./tex_001").first, dir.path() / "." / "tex_001.bmp");
+    EXPECT_EQ(finder.listings(), 2u);  // "./" is the same folder
+    EXPECT_EQ(raykit::smd_resolve_texture(dir.path(), "TEX_002").first, dir.path() / "tex_002.PNG");
 }
 
 // ------------------------------------------------------------------ malformed input
@@ -536,6 +692,8 @@ TEST(SmdMalformed, EveryCaseNamesFileAndLine) {
          6, "'vertexanimation' block has no 'end'"},
         {"no skeleton block", first_lines(kBase, 5), 5, "no 'skeleton' block"},
         {"no nodes block", {"version 1"}, 1, "no 'nodes' block"},
+        {"empty file", {}, 1, "no 'nodes' block"},
+        {"only comments", {"// nothing", "", "# here"}, 3, "no 'nodes' block"},
         {"skeleton before nodes", {"version 1", "skeleton", "time 0", "end"}, 2, "before the 'nodes' block"},
         {"triangles before nodes", {"triangles", "end"}, 1, "before the 'nodes' block"},
         {"skeleton without time", with(without(without(kBase, 9), 8), 7, "end"), 7,
@@ -584,6 +742,7 @@ TEST(SmdMalformed, EveryCaseNamesFileAndLine) {
         {"parent below -1", with(kBase, 4, "1 \"child\" -2"), 4, "parent -2 of bone 1 'child' is not a bone"},
         {"duplicate bone id", with(kBase, 4, "0 \"child\" 0"), 4, "duplicate bone id 0 (first at line 3)"},
         {"missing bone id", with(kBase, 4, "2 \"child\" 0"), 5, "id 1 is missing"},
+        {"largest bone id alone", with(kBase, 4, "65534 \"child\" 0"), 5, "id 1 is missing"},
         {"duplicate bone name", with(kBase, 4, "1 \"root\" 0"), 4, "duplicate bone name 'root'"},
         {"unterminated quote", with(kBase, 4, "1 \"child 0"), 4, "without a closing quote"},
         {"node line without parent", with(kBase, 4, "1 \"child\""), 4, "bone line needs"},
@@ -592,7 +751,7 @@ TEST(SmdMalformed, EveryCaseNamesFileAndLine) {
         {"bone twice in a frame", with(kBase, 9, "0 1 0 0 0 0 0"), 9, "bone 0 listed twice in time 0"},
         {"time not increasing", inserted(kBase, 10, "time 0"), 10, "time 0 does not follow time 0"},
         {"negative time", with(kBase, 7, "time -1"), 7, "negative time"},
-        {"huge time gap", inserted(kBase, 10, "time 100000"), 10, "time jumps from 0 to 100000"},
+        {"time past the limit", inserted(kBase, 10, "time 2147483648"), 10, "out of range (0..2147483647)"},
         {"too few pose fields", with(kBase, 8, "0 0 0 0 0 0"), 8, "needs 7 fields"},
         {"too many pose fields", with(kBase, 8, "0 0 0 0 0 0 0 0"), 8, "needs 7 fields"},
         // vertex lines

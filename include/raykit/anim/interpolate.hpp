@@ -35,7 +35,12 @@
 //                                          Interpolation = slerp, WrapMode = clamp);
 //       The local transforms of every bone at a fractional frame number, or
 //       at a time in seconds (frame = seconds * anim.fps). Feed them to
-//       Skeleton::skinning_matrices.
+//       Skeleton::skinning_matrices. Frames are the animation's frame
+//       numbers 0 .. frame_count() - 1, gaps included: frame_blend over
+//       frame_count(), then the two frames' poses are anim.frame(from) and
+//       anim.frame(to) (a frame inside a gap shows the key before it, so
+//       the blend across a gap's last frame is the hold-then-move of the
+//       file repeating that key).
 #pragma once
 
 #include <algorithm>
@@ -140,9 +145,11 @@ inline void interpolate_poses(std::span<const BonePose> a, std::span<const BoneP
 inline std::vector<BoneTransform> sample_frame(const SmdSkeletonAnim& anim, double frame,
                                                Interpolation mode = Interpolation::slerp,
                                                WrapMode wrap = WrapMode::clamp) {
-    const FrameBlend fb = frame_blend(anim.frames.size(), frame, wrap);
-    std::vector<BoneTransform> out(anim.frames[fb.from].size());
-    interpolate_poses(anim.frames[fb.from], anim.frames[fb.to], fb.t, mode, out);
+    const FrameBlend fb = frame_blend(anim.frame_count(), frame, wrap);
+    const std::vector<BonePose>& from = anim.frame(fb.from);
+    const std::vector<BonePose>& to = anim.frame(fb.to);
+    std::vector<BoneTransform> out(from.size());
+    interpolate_poses(from, to, fb.t, mode, out);
     return out;
 }
 

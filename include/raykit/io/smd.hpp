@@ -9,7 +9,8 @@
 //   struct BoneWeight    { std::uint32_t bone; float weight; };
 //   struct VertexWeights { std::vector<BoneWeight> links; };       // weights > 0, sum 1
 //   struct SmdModel      { bones, bind_pose, mesh, weights };
-//   struct SmdSkeletonAnim { frames, fps = 30, warnings };
+//   struct SmdSkeletonAnim { frames, times, fps = 30, warnings;      // key frames + their frame numbers
+//                            frame_count(), key_of_frame(f), frame(f) };
 //
 //   SmdModel load_smd_reference(const std::filesystem::path& file);
 //   SmdModel parse_smd_reference(std::string_view text, const std::string& name_for_errors,
@@ -25,14 +26,25 @@
 //                                       const std::vector<Bone>& reference_bones,
 //                                       std::span<const BonePose> rest_pose = {});
 //       An animation file, retargeted to the reference skeleton by bone NAME:
-//       frames[f][i] is the local pose of reference bone i at frame f. A
+//       frame(f)[i] is the local pose of reference bone i at frame f. A
 //       reference bone the file does not animate keeps rest_pose[i] (the bind
 //       pose for the SmdModel overload; the zero pose when rest_pose is empty).
 //       rest_pose must be empty or as long as reference_bones
 //       (std::invalid_argument otherwise).
+//   class SmdTextureFinder
+//       SmdTextureFinder(base_dir); find(name) -> {path, found}: the texture
+//       rule below. Lists each folder once (cached for the finder's life);
+//       listings() counts the folders listed. One finder per reference load.
+//   std::pair<path, bool> smd_resolve_texture(base_dir, name)   // one-shot finder
 //
 // Every function throws raykit::ParseError ("FILE:LINE: message") on malformed
-// or unreadable input; LINE is 1-based, 0 when the file cannot be read.
+// or unreadable input; LINE is 1-based (an empty file's errors are at line 1),
+// 0 only when the file cannot be opened or read.
+//
+// Bounds: memory and time grow linearly with the input, except an animation's
+// key frames, which hold one pose per reference bone each: at most
+// kSmdMaxAnimPoses = 2^24 poses (key frames x reference bones, ~400 MB) per
+// animation, an error at the `time` line that would pass it.
 //
 // File format accepted
 // --------------------
@@ -52,16 +64,18 @@
 //   roots are fine), but the ids of a block must be exactly 0..N-1. Errors:
 //   a duplicate id or name (at its line), a missing id (at the `end` line), a
 //   parent that is not a bone or a parent cycle (at the line of the bone).
-// * skeleton: `time T` (integer T >= 0, strictly increasing) opens a frame;
-//   then lines `BONE px py pz rx ry rz`. A bone absent from a frame keeps its
-//   value from the frame before; absent from the first frame it takes its
-//   rest value (zero pose and a warning in a reference file; see
-//   reference_bones above for an animation file). Frames are numbered from
-//   the first `time`; a gap (time 3 then time 6) repeats the last frame for
-//   the missing numbers (at most 65536 at a time). A bone listed twice in one
-//   frame, a bone index out of range, a pose line before the first `time`,
-//   a block without any `time` are errors. In a reference file the first
-//   frame is the bind pose; later frames are checked and ignored.
+// * skeleton: `time T` (integer 0 <= T <= 2147483647, strictly increasing)
+//   opens a key frame; then lines `BONE px py pz rx ry rz`. A bone absent
+//   from a key keeps its value from the key before; absent from the first
+//   key it takes its rest value (zero pose and a warning in a reference file;
+//   see reference_bones above for an animation file). Frames are numbered
+//   from the first `time` (frame T - T0); a gap (time 3 then time 6) holds
+//   the last key over the missing numbers (frames 4 and 5 show time 3's
+//   pose, exactly as if the file repeated it), stored once: a gap costs
+//   nothing. A bone listed twice in one key, a bone index out of range, a
+//   pose line before the first `time`, a block without any `time` are
+//   errors. In a reference file the first key is the bind pose; later keys
+//   are checked and ignored (not stored).
 // * triangles: groups of 4 lines — a material line (the whole trimmed line,
 //   a texture file name) and 3 vertex lines
 //       PARENT px py pz nx ny nz u v [LINKS (BONE WEIGHT) x LINKS]
@@ -94,15 +108,23 @@
 //   (mesh.material_ids per triangle). Material::name is the line, map_kd the
 //   texture path: base_dir/NAME when it exists, else a file in base_dir whose
 //   name matches case-insensitively, else (NAME without extension) NAME plus
-//   .bmp/.jpg/.jpeg/.tga/.png matched case-insensitively; when nothing is
-//   found map_kd = base_dir/NAME and mesh.warnings says so.
+//   .bmp/.jpg/.jpeg/.tga/.png matched case-insensitively (the first such
+//   file in directory order); when nothing is found map_kd = base_dir/NAME
+//   and mesh.warnings says so. NAME may name a subfolder. Each folder is
+//   listed once per load, however many materials it serves.
 // * Non-fatal remarks (missing textures, bones absent from the first frame)
 //   go to mesh.warnings as "FILE:LINE: message".
 //
 // Result (animation)
 // ------------------
-// * frames[f].size() == reference_bones.size(). fps is 30 (SMD does not store
-//   a rate; set it yourself for other rates).
+// * One key frame per `time` line: frames[k] (one pose per reference bone,
+//   frames[k].size() == reference_bones.size()) is the pose at frame number
+//   times[k]; times[0] == 0, strictly increasing. frame_count() ==
+//   times.back() + 1, the frame numbers the file spans; frame(f) ==
+//   frames[key_of_frame(f)], the last key at or before f. For a file without
+//   gaps times[k] == k and frame(f) is frames[f]. (A hand-made
+//   SmdSkeletonAnim may leave times empty: then key k is frame k.)
+//   fps is 30 (SMD does not store a rate; set it yourself for other rates).
 // * A bone of the file whose name is not in the reference skeleton is
 //   ignored with a warning; one whose parent's name differs from the
 //   reference's parent gives a warning (its local pose is used as is).
@@ -165,13 +187,38 @@ struct SmdModel {
     std::vector<VertexWeights> weights;      ///< one per mesh vertex
 };
 
-/// An animation SMD retargeted to a reference skeleton: frames[f][bone].
+/// An animation SMD retargeted to a reference skeleton: key frames
+/// frames[k][bone] at frame numbers times[k] (see the header comment).
 struct SmdSkeletonAnim {
-    std::vector<std::vector<BonePose>> frames;
+    std::vector<std::vector<BonePose>> frames;  ///< key frames, one pose per reference bone
+    std::vector<std::uint32_t> times;           ///< frame number of each key; empty: key k is frame k
     float fps = 30.0f;
     std::vector<std::string> warnings;
 
-    std::size_t frame_count() const noexcept { return frames.size(); }
+    std::size_t key_count() const noexcept { return frames.size(); }
+    /// Frames the animation spans: the last key's frame number + 1.
+    std::size_t frame_count() const noexcept {
+        if (times.empty() || frames.empty()) return frames.size();
+        return static_cast<std::size_t>(times.back()) + 1;
+    }
+    /// Index of the key that frame `f` shows: the last key at or before f.
+    /// Throws std::out_of_range for f >= frame_count(), std::invalid_argument
+    /// when times is neither empty nor one entry per key starting at 0.
+    std::size_t key_of_frame(std::size_t f) const {
+        if (f >= frame_count()) {
+            throw std::out_of_range("SmdSkeletonAnim: frame " + std::to_string(f) + " of " +
+                                    std::to_string(frame_count()));
+        }
+        if (times.empty()) return f;
+        if (times.size() != frames.size() || times.front() != 0) {
+            throw std::invalid_argument("SmdSkeletonAnim: times must be empty or one per key frame, starting at 0");
+        }
+        const auto it = std::upper_bound(times.begin(), times.end(), f,
+                                         [](std::size_t v, std::uint32_t t) { return v < t; });
+        return static_cast<std::size_t>(it - times.begin()) - 1;
+    }
+    /// The poses of frame f (one per reference bone).
+    const std::vector<BonePose>& frame(std::size_t f) const { return frames[key_of_frame(f)]; }
 };
 
 inline SmdModel load_smd_reference(const std::filesystem::path& file);
@@ -186,8 +233,8 @@ inline SmdSkeletonAnim parse_smd_animation(std::string_view text, const std::str
 
 namespace detail {
 
-inline constexpr int kSmdMaxBones = 65535;           ///< ids 0..65534 (bone indices pack into u16)
-inline constexpr std::int64_t kSmdMaxTimeGap = 65536;  ///< most frames one `time` may skip
+inline constexpr int kSmdMaxBones = 65535;                 ///< ids 0..65534 (bone indices pack into u16)
+inline constexpr std::int64_t kSmdMaxTime = 2147483647;    ///< largest `time` value (frame numbers fit u32)
 
 inline std::string smd_lower(std::string_view s) {
     std::string out(s);
@@ -195,36 +242,89 @@ inline std::string smd_lower(std::string_view s) {
     return out;
 }
 
-/// Texture path for an SMD material line (rules in the header comment).
-/// Returns the path and whether a file was found.
+}  // namespace detail
+
+/// Most bone poses one animation stores (key frames x reference bones): 2^24, ~400 MB.
+inline constexpr std::size_t kSmdMaxAnimPoses = std::size_t{1} << 24;
+
+/// Texture paths for SMD material lines (rules in the header comment), listing
+/// each folder at most once: a folder's regular files are read on first use
+/// and kept, keyed by the folder's lexically normal path.
+class SmdTextureFinder {
+public:
+    explicit SmdTextureFinder(std::filesystem::path base_dir) : base_(std::move(base_dir)) {}
+
+    /// The texture path for material line `name` and whether a file was found.
+    std::pair<std::filesystem::path, bool> find(std::string_view name) {
+        namespace fs = std::filesystem;
+        const fs::path rel(name);
+        const fs::path direct = base_ / rel;
+        std::error_code ec;
+        if (fs::is_regular_file(direct, ec)) return {direct, true};
+        const fs::path dir = direct.parent_path();
+        const Folder& f = folder(dir);
+        if (!f.listed) return {direct, false};
+        const std::string stem_lower = detail::smd_lower(rel.filename().string());
+        if (const auto it = f.by_lower.find(stem_lower); it != f.by_lower.end()) {
+            return {dir / it->second.second, true};
+        }
+        if (!rel.has_extension()) {
+            static constexpr const char* kExt[] = {".bmp", ".jpg", ".jpeg", ".tga", ".png"};
+            const std::pair<std::size_t, std::string>* best = nullptr;
+            for (const char* e : kExt) {
+                const auto it = f.by_lower.find(stem_lower + e);
+                if (it != f.by_lower.end() && (!best || it->second.first < best->first)) best = &it->second;
+            }
+            if (best) return {dir / best->second, true};
+        }
+        return {direct, false};
+    }
+
+    /// Folders listed so far.
+    std::size_t listings() const noexcept { return listings_; }
+
+private:
+    struct Folder {
+        bool listed = false;
+        /// lower-case file name -> (position in directory order, file name), first file of each.
+        std::unordered_map<std::string, std::pair<std::size_t, std::string>> by_lower;
+    };
+
+    const Folder& folder(const std::filesystem::path& dir) {
+        namespace fs = std::filesystem;
+        const fs::path where = dir.empty() ? fs::path(".") : dir;
+        fs::path key = where.lexically_normal();  // "a/./b/" and "a/b" are one folder
+        if (!key.has_filename() && key.has_relative_path()) key = key.parent_path();
+        auto [slot, inserted] = folders_.try_emplace(key.string());
+        Folder& f = slot->second;
+        if (!inserted) return f;
+        ++listings_;
+        std::error_code ec;
+        fs::directory_iterator it(where, ec);
+        if (ec) return f;
+        f.listed = true;
+        std::size_t order = 0;
+        for (; it != fs::directory_iterator(); it.increment(ec)) {
+            if (ec) break;
+            if (!it->is_regular_file(ec)) continue;
+            std::string file = it->path().filename().string();
+            f.by_lower.try_emplace(detail::smd_lower(file), order++, std::move(file));
+        }
+        return f;
+    }
+
+    std::filesystem::path base_;
+    std::unordered_map<std::string, Folder> folders_;
+    std::size_t listings_ = 0;
+};
+
+/// One-shot texture lookup (lists the folder every call: use an SmdTextureFinder for many names).
 inline std::pair<std::filesystem::path, bool> smd_resolve_texture(const std::filesystem::path& base_dir,
                                                                    std::string_view name) {
-    namespace fs = std::filesystem;
-    const fs::path direct = base_dir / fs::path(name);
-    std::error_code ec;
-    if (fs::is_regular_file(direct, ec)) return {direct, true};
-    const fs::path rel(name);
-    const fs::path dir = (base_dir / rel).parent_path();
-    const std::string stem_lower = smd_lower(rel.filename().string());
-    const bool has_ext = rel.has_extension();
-    static constexpr const char* kExt[] = {".bmp", ".jpg", ".jpeg", ".tga", ".png"};
-    fs::directory_iterator it(dir.empty() ? fs::path(".") : dir, ec);
-    if (ec) return {direct, false};
-    fs::path by_ext;
-    for (; it != fs::directory_iterator(); it.increment(ec)) {
-        if (ec) break;
-        if (!it->is_regular_file(ec)) continue;
-        const std::string f = smd_lower(it->path().filename().string());
-        if (f == stem_lower) return {dir / it->path().filename(), true};
-        if (!has_ext && by_ext.empty()) {
-            for (const char* e : kExt) {
-                if (f == stem_lower + e) by_ext = dir / it->path().filename();
-            }
-        }
-    }
-    if (!by_ext.empty()) return {by_ext, true};
-    return {direct, false};
+    return SmdTextureFinder(base_dir).find(name);
 }
+
+namespace detail {
 
 /// Splits the text into trimmed lines (LF or CRLF), skipping nothing.
 class SmdLineReader {
@@ -303,7 +403,7 @@ public:
                      " (expected version, nodes, skeleton, triangles or vertexanimation)");
             }
         }
-        last_line_ = reader.lines_read();
+        last_line_ = std::max<std::size_t>(reader.lines_read(), 1);  // an empty file's errors are at line 1
         line_ = last_line_;
         if (!seen_nodes_) fail("no 'nodes' block");
         if (!seen_skeleton_) fail("no 'skeleton' block");
@@ -312,7 +412,7 @@ public:
     SmdModel take_model() {
         SmdModel m;
         m.bones = std::move(bones_);
-        m.bind_pose = std::move(frames_.front());
+        m.bind_pose = std::move(first_);
         const std::size_t nv = positions_.size();
         m.mesh.positions = std::move(positions_);
         m.mesh.normals = std::move(normals_);
@@ -323,10 +423,11 @@ public:
         for (std::size_t v = 0; v < nv; ++v) {
             m.weights[v].links.assign(links_.begin() + link_offsets_[v], links_.begin() + link_offsets_[v + 1]);
         }
+        SmdTextureFinder textures(base_);
         for (std::size_t i = 0; i < material_names_.size(); ++i) {
             Material mat;
             mat.name = material_names_[i];
-            const auto [path, found] = smd_resolve_texture(base_, material_names_[i]);
+            const auto [path, found] = textures.find(material_names_[i]);
             mat.map_kd = path.string();
             if (!found) {
                 warnings_.push_back(name_ + ":" + std::to_string(material_lines_[i]) + ": texture " +
@@ -340,19 +441,8 @@ public:
 
     SmdSkeletonAnim take_animation() {
         SmdSkeletonAnim a;
-        const std::size_t nref = ref_bones_->size();
-        a.frames.resize(frames_.size());
-        for (std::size_t f = 0; f < frames_.size(); ++f) {
-            std::vector<BonePose>& out = a.frames[f];
-            if (ref_rest_.empty()) {
-                out.assign(nref, BonePose{});
-            } else {
-                out.assign(ref_rest_.begin(), ref_rest_.end());
-            }
-            for (std::size_t b = 0; b < frames_[f].size(); ++b) {
-                if (to_ref_[b] >= 0) out[static_cast<std::size_t>(to_ref_[b])] = frames_[f][b];
-            }
-        }
+        a.frames = std::move(keys_);
+        a.times = std::move(key_times_);
         a.warnings = std::move(warnings_);
         return a;
     }
@@ -504,7 +594,7 @@ private:
     /// the mapping of the file's bones onto the reference skeleton.
     void nodes_done() {
         const std::size_t n = bones_.size();
-        defaults_.assign(n, BonePose{});
+        first_.assign(n, BonePose{});
         if (mode_ != Mode::animation) return;
         std::unordered_map<std::string_view, std::size_t> ref_by_name;
         for (std::size_t i = 0; i < ref_bones_->size(); ++i) ref_by_name.try_emplace((*ref_bones_)[i].name, i);
@@ -517,7 +607,6 @@ private:
             }
             const std::size_t r = it->second;
             to_ref_[b] = static_cast<std::int64_t>(r);
-            if (!ref_rest_.empty()) defaults_[b] = ref_rest_[r];
             const int p = bones_[b].parent;
             const int rp = (*ref_bones_)[r].parent;
             const std::string pn = p < 0 ? std::string() : bones_[static_cast<std::size_t>(p)].name;
@@ -534,11 +623,35 @@ private:
 
     // ------------------------------------------------------------ skeleton
 
+    /// Key frames: a reference keeps its first (the bind pose, in first_) and
+    /// checks the others; an animation keeps one pose per reference bone per
+    /// key (keys_, key_times_). O(1) work per line besides the key copies.
     void block_skeleton(SmdLineReader& reader) {
         const std::size_t n = bones_.size();
-        std::vector<std::uint8_t> in_frame(n, 0);
+        const bool anim = mode_ == Mode::animation;
+        const std::size_t per_key = anim ? std::max<std::size_t>(ref_bones_->size(), 1) : 1;
+        const std::size_t max_keys = kSmdMaxAnimPoses / per_key;
+        // An animation counts its `time` lines first: over the limit it stores
+        // nothing and fails at the first `time` line past it (after any earlier error).
+        bool store = anim;
+        if (anim) {
+            SmdLineReader ahead = reader;
+            std::string_view l;
+            std::size_t number_ignored = 0, total = 0;
+            while (ahead.next(l, number_ignored) && l != "end") {
+                std::string_view r = l;
+                if (obj_next_token(r) == "time") ++total;
+            }
+            store = total <= max_keys;
+            if (store) {
+                keys_.reserve(total);
+                key_times_.reserve(total);
+            }
+        }
+        std::vector<std::size_t> listed(n, 0);  // key (1-based) in which each bone was last listed
         std::vector<std::uint8_t> in_first(n, 0);
-        std::int64_t last_time = -1;
+        std::size_t key = 0;  // keys so far; the current key is number `key`
+        std::int64_t first_time = -1, last_time = -1;
         std::size_t first_line = 0;
         std::string_view line;
         for (;;) {
@@ -549,24 +662,34 @@ private:
                 if (toks_.size() != 2) fail("'time' takes one integer");
                 const std::int64_t t = integer(toks_[1], "time");
                 if (t < 0) fail("negative time " + std::to_string(t));
-                if (frames_.empty()) {
-                    frames_.push_back(defaults_);
+                if (t > kSmdMaxTime) {
+                    fail("time " + std::to_string(t) + " out of range (0.." + std::to_string(kSmdMaxTime) + ")");
+                }
+                if (key == 0) {
+                    first_time = t;
                     first_line = line_;
-                } else {
-                    if (t <= last_time) {
-                        fail("time " + std::to_string(t) + " does not follow time " + std::to_string(last_time));
-                    }
-                    if (t - last_time > kSmdMaxTimeGap) {
-                        fail("time jumps from " + std::to_string(last_time) + " to " + std::to_string(t));
-                    }
-                    if (frames_.size() == 1) in_first = in_frame;
-                    for (std::int64_t k = last_time; k < t; ++k) frames_.push_back(frames_.back());
+                } else if (t <= last_time) {
+                    fail("time " + std::to_string(t) + " does not follow time " + std::to_string(last_time));
                 }
                 last_time = t;
-                std::fill(in_frame.begin(), in_frame.end(), std::uint8_t{0});
+                ++key;
+                if (anim && key > max_keys) {
+                    fail("animation too large: more than " + std::to_string(kSmdMaxAnimPoses) + " bone poses (" +
+                         std::to_string(key) + " key frames x " + std::to_string(ref_bones_->size()) +
+                         " reference bones)");
+                }
+                if (store) {
+                    if (keys_.empty()) {
+                        keys_.emplace_back(ref_rest_.begin(), ref_rest_.end());
+                        keys_.back().resize(ref_bones_->size());  // zero poses without a rest pose
+                    } else {
+                        keys_.push_back(keys_.back());
+                    }
+                    key_times_.push_back(static_cast<std::uint32_t>(t - first_time));
+                }
                 continue;
             }
-            if (frames_.empty()) fail("bone pose before the first 'time' line");
+            if (key == 0) fail("bone pose before the first 'time' line");
             if (toks_.size() != 7) {
                 fail("pose line needs 7 fields (bone px py pz rx ry rz), got " + std::to_string(toks_.size()));
             }
@@ -575,14 +698,20 @@ private:
                 fail("bone index " + std::to_string(b) + " out of range (" + std::to_string(n) + " bones)");
             }
             const auto ub = static_cast<std::size_t>(b);
-            if (in_frame[ub]) fail("bone " + std::to_string(b) + " listed twice in time " + std::to_string(last_time));
-            in_frame[ub] = 1;
-            BonePose& pose = frames_.back()[ub];
+            if (listed[ub] == key) {
+                fail("bone " + std::to_string(b) + " listed twice in time " + std::to_string(last_time));
+            }
+            listed[ub] = key;
+            BonePose pose;
             for (int k = 0; k < 3; ++k) pose.position[k] = number(toks_[1 + k], "skeleton");
             for (int k = 0; k < 3; ++k) pose.rotation[k] = number(toks_[4 + k], "skeleton");
+            if (key == 1) {
+                in_first[ub] = 1;
+                first_[ub] = pose;
+            }
+            if (store && to_ref_[ub] >= 0) keys_.back()[static_cast<std::size_t>(to_ref_[ub])] = pose;
         }
-        if (frames_.empty()) fail("'skeleton' block has no 'time' frame");
-        if (frames_.size() == 1) in_first = in_frame;
+        if (key == 0) fail("'skeleton' block has no 'time' frame");
         if (mode_ == Mode::reference) {
             for (std::size_t b = 0; b < n; ++b) {
                 if (!in_first[b]) {
@@ -679,49 +808,55 @@ private:
             nlinks = integer(toks_[9], "link count");
             if (nlinks < 0) fail("negative link count " + std::to_string(nlinks));
             const std::size_t have = toks_.size() - 10;
-            if (static_cast<std::uint64_t>(nlinks) * 2 != have) {
+            if (have % 2 != 0 || static_cast<std::uint64_t>(nlinks) != have / 2) {
                 fail("vertex line declares " + std::to_string(nlinks) + " links (" + std::to_string(2 * nlinks) +
                      " fields) but has " + std::to_string(have) + " fields after the count");
             }
         }
-        double sum = 0.0;
-        for (std::int64_t k = 0; k < nlinks; ++k) {
-            const std::uint32_t b = bone_field(toks_[10 + 2 * k], "link to bone");
-            const float w = number(toks_[11 + 2 * k], "link weight");
-            if (w < 0.0f) fail("negative link weight " + obj_quote(toks_[11 + 2 * k]));
-            sum += w;
-            add_link(b, w);
-        }
         if (nlinks == 0) {
             cur_links_.push_back({parent, 1.0f});
-        } else {
-            drop_zero_links();
-            const double remainder = 1.0 - sum;
-            if (remainder > 1e-5) {
-                add_link(parent, static_cast<float>(remainder));
-                sum = 1.0;
+            return vertex_index(f);
+        }
+        // Weights add up per bone in double (finite however many duplicates;
+        // a float sum could overflow), found through slot_of_bone_ in O(1).
+        if (slot_of_bone_.size() != bones_.size()) slot_of_bone_.assign(bones_.size(), kInvalidIndex);
+        acc_links_.clear();
+        double sum = 0.0;
+        for (std::int64_t k = 0; k < nlinks; ++k) {
+            const std::uint32_t b = bone_field(toks_[static_cast<std::size_t>(10 + 2 * k)], "link to bone");
+            const std::string_view wt = toks_[static_cast<std::size_t>(11 + 2 * k)];
+            const float w = number(wt, "link weight");
+            if (w < 0.0f) fail("negative link weight " + obj_quote(wt));
+            sum += w;
+            std::uint32_t& slot = slot_of_bone_[b];
+            if (slot == kInvalidIndex) {
+                slot = static_cast<std::uint32_t>(acc_links_.size());
+                acc_links_.push_back({b, static_cast<double>(w)});
+            } else {
+                acc_links_[slot].weight += w;
             }
-            if (sum != 1.0) {
-                for (BoneWeight& l : cur_links_) l.weight = static_cast<float>(l.weight / sum);
+        }
+        for (const AccLink& l : acc_links_) slot_of_bone_[l.bone] = kInvalidIndex;
+        // Zero weights go; Valve's remainder goes to the parent (last when it has no link yet).
+        acc_links_.erase(std::remove_if(acc_links_.begin(), acc_links_.end(),
+                                        [](const AccLink& l) { return !(l.weight > 0.0); }),
+                         acc_links_.end());
+        const double remainder = 1.0 - sum;
+        if (remainder > 1e-5) {
+            auto it = std::find_if(acc_links_.begin(), acc_links_.end(),
+                                   [&](const AccLink& l) { return l.bone == parent; });
+            if (it == acc_links_.end()) {
+                acc_links_.push_back({parent, remainder});
+            } else {
+                it->weight += remainder;
             }
+            sum = 1.0;
+        }
+        for (const AccLink& l : acc_links_) {
+            const float w = static_cast<float>(sum != 1.0 ? l.weight / sum : l.weight);
+            if (w > 0.0f) cur_links_.push_back({l.bone, w});  // a weight far below the others may round to 0
         }
         return vertex_index(f);
-    }
-
-    void add_link(std::uint32_t bone, float w) {
-        for (BoneWeight& l : cur_links_) {
-            if (l.bone == bone) {
-                l.weight += w;
-                return;
-            }
-        }
-        cur_links_.push_back({bone, w});
-    }
-
-    void drop_zero_links() {
-        cur_links_.erase(std::remove_if(cur_links_.begin(), cur_links_.end(),
-                                        [](const BoneWeight& l) { return !(l.weight > 0.0f); }),
-                         cur_links_.end());
     }
 
     static std::uint64_t mix(std::uint64_t h, std::uint64_t v) noexcept {
@@ -781,8 +916,11 @@ private:
 
     std::vector<Bone> bones_;
     std::vector<std::size_t> bone_lines_;
-    std::vector<BonePose> defaults_;
-    std::vector<std::vector<BonePose>> frames_;
+    std::vector<BonePose> first_;  ///< per file bone: its pose in the first key (zero when absent)
+
+    // animation key frames (retargeted: one pose per reference bone)
+    std::vector<std::vector<BonePose>> keys_;
+    std::vector<std::uint32_t> key_times_;
 
     // animation retargeting
     const std::vector<Bone>* ref_bones_ = nullptr;
@@ -796,6 +934,12 @@ private:
     std::vector<BoneWeight> links_;
     std::vector<std::size_t> link_offsets_;
     std::vector<BoneWeight> cur_links_;
+    struct AccLink {
+        std::uint32_t bone;
+        double weight;
+    };
+    std::vector<AccLink> acc_links_;
+    std::vector<std::uint32_t> slot_of_bone_;  ///< per bone: its index in acc_links_, kInvalidIndex when none
     std::unordered_map<std::uint64_t, std::uint32_t> head_of_hash_;
     std::vector<std::uint32_t> chain_;
     std::vector<Triangle> triangles_;
