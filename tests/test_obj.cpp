@@ -1345,7 +1345,8 @@ TEST(ObjParse, FilesWithoutTrianglesWarnAndNameAForeignExtension) {
         EXPECT_NE(m.warnings[0].find("'.smd'"), std::string::npos) << m.warnings[0];
     }
     {
-        const std::string png("\x89PNG\r\n\x1a\n\0\0\0\rIHDR\0\0\0\x01\0\0\0\x01\x08\x02\0\0\0", 33);
+        static const char kHeader[] = "\x89PNG\r\n\x1a\n\0\0\0\rIHDR\0\0\0\x01\0\0\0\x01\x08\x02\0\0\0";
+        const std::string png(kHeader, sizeof kHeader - 1);  // the literal's NULs included
         const fs::path bin = dir.write("image.PNG", png);
         const Mesh m = raykit::load_obj(bin);
         ASSERT_EQ(m.warnings.size(), 1u);
