@@ -2,6 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
+#include <cstdio>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -442,4 +445,79 @@ TEST(CoordinateRange, CheckPositionsDrawsTheLineAtTheBoundAndLetsNonFiniteThroug
             }
             EXPECT_EQ(coordinate_in_range(bad), false);
         }
+}
+
+namespace {
+
+/// Watertight::intersect written out with a chosen rounding of its two multiply-adds
+/// (volatile keeps the compiler from fusing the unfused forms): the oracle for the rounding
+/// the library claims through RAYKIT_FAST_FMA, which the OpenCL device is told to copy.
+bool watertight_rounded(const Ray& r, const vec3& p0, const vec3& p1, const vec3& p2, bool fuse, TriHit& out) {
+    const Watertight::RayData d = Watertight::prepare(r);
+    const vec3 A = p0 - d.org, B = p1 - d.org, C = p2 - d.org;
+    auto msub = [&](float a, float s, float b) {
+        if (fuse) return std::fma(-s, b, a);
+        volatile float m = s * b;
+        return a - m;
+    };
+    const float Ax = msub(A[d.kx], d.sx, A[d.kz]), Ay = msub(A[d.ky], d.sy, A[d.kz]);
+    const float Bx = msub(B[d.kx], d.sx, B[d.kz]), By = msub(B[d.ky], d.sy, B[d.kz]);
+    const float Cx = msub(C[d.kx], d.sx, C[d.kz]), Cy = msub(C[d.ky], d.sy, C[d.kz]);
+    const double Ud = double(Cx) * double(By) - double(Cy) * double(Bx);
+    const double Vd = double(Ax) * double(Cy) - double(Ay) * double(Cx);
+    const double Wd = double(Bx) * double(Ay) - double(By) * double(Ax);
+    if ((Ud < 0.0 || Vd < 0.0 || Wd < 0.0) && (Ud > 0.0 || Vd > 0.0 || Wd > 0.0)) return false;
+    const double detd = Ud + Vd + Wd;
+    if (!(detd != 0.0)) return false;
+    const float U = float(Ud), V = float(Vd), W = float(Wd), det = float(detd);
+    if (!(det != 0.0f)) return false;
+    const float Az = d.sz * A[d.kz], Bz = d.sz * B[d.kz], Cz = d.sz * C[d.kz];
+    float T;
+    if (fuse) {
+        T = std::fma(W, Cz, std::fma(U, Az, V * Bz));
+    } else {
+        volatile float a = U * Az, b = V * Bz, c = W * Cz;
+        volatile float ab = a + b;
+        T = ab + c;
+    }
+    const float inv = 1.0f / det;
+    out = {T * inv, V * inv, W * inv};
+    return true;
+}
+
+}  // namespace
+
+// RAYKIT_FAST_FMA says whether Watertight fuses its two multiply-adds; the device copies that
+// choice (cl/layout.hpp host_float_config) to return the CPU's t, u, v bit for bit. This checks
+// the claim against both roundings written out, on rays where the two differ.
+TEST(Watertight, RoundsAsRaykitFastFmaSays) {
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+    auto bits = [](float x) { return std::bit_cast<std::uint32_t>(x); };
+    int decisive = 0, agree_claim = 0, agree_other = 0;
+    for (int i = 0; i < 20000 && decisive < 200; ++i) {
+        const vec3 c(U(rng), U(rng), U(rng));
+        const vec3 p0 = c + vec3(U(rng), U(rng), U(rng)) * 0.3f, p1 = c + vec3(U(rng), U(rng), U(rng)) * 0.3f,
+                   p2 = c + vec3(U(rng), U(rng), U(rng)) * 0.3f;
+        const vec3 o(U(rng) * 3.0f, U(rng) * 3.0f, U(rng) * 3.0f);
+        const Ray r{o, 0.0f, (p0 + p1 + p2) * (1.0f / 3.0f) - o + vec3(U(rng), U(rng), U(rng)) * 0.01f, kInf};
+        TriHit lib{}, fused{}, plain{};
+        const bool hl = Watertight::intersect(Watertight::prepare(r), p0, p1, p2, 0.0f, kInf, lib);
+        const bool hf = watertight_rounded(r, p0, p1, p2, true, fused);
+        const bool hp = watertight_rounded(r, p0, p1, p2, false, plain);
+        auto same = [&](bool ha, const TriHit& a, bool hb, const TriHit& b) {
+            return ha == hb && (!ha || (bits(a.t) == bits(b.t) && bits(a.u) == bits(b.u) && bits(a.v) == bits(b.v)));
+        };
+        if (same(hf, fused, hp, plain)) continue;  // both roundings agree: says nothing
+        ++decisive;
+        const bool claim = RAYKIT_FAST_FMA != 0;
+        agree_claim += same(hl, lib, claim ? hf : hp, claim ? fused : plain);
+        agree_other += same(hl, lib, claim ? hp : hf, claim ? plain : fused);
+    }
+    std::printf("[ info ] RAYKIT_FAST_FMA %d: %d rays where the roundings differ; library agrees with it on %d, "
+                "with the other on %d\n",
+                RAYKIT_FAST_FMA, decisive, agree_claim, agree_other);
+    ASSERT_GT(decisive, 50);
+    EXPECT_EQ(agree_claim, decisive);
+    EXPECT_EQ(agree_other, 0);
 }

@@ -147,110 +147,20 @@ inline std::vector<LayoutEntry> layout_entries() {
     return e;
 }
 
-/// How this build of the CPU code evaluates the two fusable expressions of
-/// Watertight::intersect (intersect/triangle.hpp): A[kx] − sx·A[kz]
-/// (`msub`) and U·Az + V·Bz + W·Cz (`tnum`). Compilers fuse them into fma or
-/// not depending on flags (GCC -O2 with FMA hardware fuses; -O0/-O1,
-/// -ffp-contract=off or no FMA do not), and the device must do the same to
-/// return the same t, u, v bit for bit.
+/// How this build of the CPU code rounds the two multiply-adds of
+/// Watertight::intersect (intersect/triangle.hpp): A[kx] − sx·A[kz] (`msub`) and
+/// U·Az + V·Bz + W·Cz (`tnum`). The CPU code fuses both explicitly exactly when
+/// RAYKIT_FAST_FMA is 1 (config.hpp), so this is known at compile time; the device
+/// is told the same through config_source() and returns the same t, u, v bit for
+/// bit. (A run-time probe of the rounding used to stand here; it is now the test
+/// that checks this constant, test_geometry's WatertightRoundsAsRaykitFastFmaSays.)
 struct HostFloatConfig {
-    bool fuse_msub = true;
-    bool fuse_tnum = true;
-    bool probed = false;  ///< false when no probe ray told the variants apart (defaults kept)
+    bool fuse_msub = RAYKIT_FAST_FMA != 0;
+    bool fuse_tnum = RAYKIT_FAST_FMA != 0;
 };
 
-namespace detail {
-
-/// Watertight::intersect written out with a chosen fusion (volatile keeps
-/// the compiler from fusing the unfused variant).
-inline bool watertight_variant(const Ray& r, const vec3& p0, const vec3& p1, const vec3& p2, bool fuse_msub,
-                               bool fuse_tnum, TriHit& out) {
-    const Watertight::RayData d = Watertight::prepare(r);
-    const vec3 A = p0 - d.org, B = p1 - d.org, C = p2 - d.org;
-    auto msub = [&](float a, float s, float b) {
-        if (fuse_msub) return std::fma(-s, b, a);
-        volatile float m = s * b;
-        return a - m;
-    };
-    const float Ax = msub(A[d.kx], d.sx, A[d.kz]), Ay = msub(A[d.ky], d.sy, A[d.kz]);
-    const float Bx = msub(B[d.kx], d.sx, B[d.kz]), By = msub(B[d.ky], d.sy, B[d.kz]);
-    const float Cx = msub(C[d.kx], d.sx, C[d.kz]), Cy = msub(C[d.ky], d.sy, C[d.kz]);
-    const double Ud = double(Cx) * double(By) - double(Cy) * double(Bx);
-    const double Vd = double(Ax) * double(Cy) - double(Ay) * double(Cx);
-    const double Wd = double(Bx) * double(Ay) - double(By) * double(Ax);
-    if ((Ud < 0.0 || Vd < 0.0 || Wd < 0.0) && (Ud > 0.0 || Vd > 0.0 || Wd > 0.0)) return false;
-    const double detd = Ud + Vd + Wd;
-    if (!(detd != 0.0)) return false;
-    const float U = static_cast<float>(Ud), V = static_cast<float>(Vd), W = static_cast<float>(Wd);
-    const float det = static_cast<float>(detd);
-    if (!(det != 0.0f)) return false;
-    const float Az = d.sz * A[d.kz], Bz = d.sz * B[d.kz], Cz = d.sz * C[d.kz];
-    float T;
-    if (fuse_tnum) {
-        T = std::fma(W, Cz, std::fma(U, Az, V * Bz));
-    } else {
-        volatile float a = U * Az, b = V * Bz, c = W * Cz;
-        volatile float ab = a + b;
-        T = ab + c;
-    }
-    const float inv = 1.0f / det;
-    out = {T * inv, V * inv, W * inv};
-    return true;
-}
-
-inline bool same_float_bits(float a, float b) noexcept { return std::bit_cast<std::uint32_t>(a) == std::bit_cast<std::uint32_t>(b); }
-
-}  // namespace detail
-
-/// Probes (once) how this translation unit's Watertight::intersect rounds:
-/// random rays and triangles until the four fused/unfused variants have been
-/// told apart, then the variant the library's own code agrees with.
-inline HostFloatConfig host_float_config() {
-    static const HostFloatConfig cfg = [] {
-        std::uint64_t state = 0x243F6A8885A308D3ull;
-        auto next = [&] {  // xorshift, deterministic and cheap
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            return float(double(state >> 40) / double(1ull << 24)) * 2.0f - 1.0f;
-        };
-        int votes[4] = {0, 0, 0, 0};
-        int decisive = 0;
-        for (int i = 0; i < 20000 && decisive < 64; ++i) {
-            const vec3 c(next(), next(), next());
-            const vec3 p0 = c + vec3(next(), next(), next()) * 0.3f, p1 = c + vec3(next(), next(), next()) * 0.3f,
-                       p2 = c + vec3(next(), next(), next()) * 0.3f;
-            const vec3 o(next() * 3.0f, next() * 3.0f, next() * 3.0f);
-            const vec3 target = (p0 + p1 + p2) * (1.0f / 3.0f);
-            const Ray r{o, 0.0f, target - o + vec3(next(), next(), next()) * 0.01f, kInf};
-            TriHit lib{}, v[4]{};
-            bool hl = Watertight::intersect(Watertight::prepare(r), p0, p1, p2, 0.0f, kInf, lib);
-            bool hv[4];
-            for (int k = 0; k < 4; ++k) hv[k] = detail::watertight_variant(r, p0, p1, p2, k & 1, k & 2, v[k]);
-            bool all_same = true;
-            for (int k = 1; k < 4; ++k)
-                all_same = all_same && hv[k] == hv[0] &&
-                           (!hv[0] || (detail::same_float_bits(v[k].t, v[0].t) && detail::same_float_bits(v[k].u, v[0].u) &&
-                                       detail::same_float_bits(v[k].v, v[0].v)));
-            if (all_same) continue;
-            ++decisive;
-            for (int k = 0; k < 4; ++k)
-                votes[k] += hv[k] == hl && (!hl || (detail::same_float_bits(v[k].t, lib.t) &&
-                                                    detail::same_float_bits(v[k].u, lib.u) &&
-                                                    detail::same_float_bits(v[k].v, lib.v)));
-        }
-        HostFloatConfig c;
-        if (decisive == 0) return c;
-        int best = 3;  // ties prefer fusing (what the device compiler would do by itself)
-        for (int k = 2; k >= 0; --k)
-            if (votes[k] > votes[best]) best = k;
-        c.fuse_msub = best & 1;
-        c.fuse_tnum = best & 2;
-        c.probed = true;
-        return c;
-    }();
-    return cfg;
-}
+/// The rounding of this build's Watertight::intersect (see HostFloatConfig).
+inline constexpr HostFloatConfig host_float_config() noexcept { return {}; }
 
 /// The program preamble every raykit kernel program starts with: the
 /// compile-time constants shared with the CPU code, as exact literals, and

@@ -10,7 +10,7 @@
 // RAYKIT_BVH_MAX_DEPTH entries. On a device with cl_khr_fp64 the edge
 // functions are evaluated in double like the CPU's; the two expressions a
 // compiler may fuse into fma are fused on the device exactly when the host
-// build fuses them (probed, cl/layout.hpp host_float_config()); division is
+// build fuses them (RAYKIT_FAST_FMA, cl/layout.hpp host_float_config()); division is
 // correctly rounded where the device supports
 // -cl-fp32-correctly-rounded-divide-sqrt. So on such devices (PoCL's CPU
 // device is one) hits equal the CPU's bit for bit (t, u, v, triangle).
