@@ -32,14 +32,25 @@
 //   build-bench-render/benchmarks/bench_render --benchmark_out=docs/bench_render.json --benchmark_out_format=json
 #include <benchmark/benchmark.h>
 
+#include <chrono>
 #include <filesystem>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "common.hpp"
 #include "raykit.hpp"
+#include "raykit/anim/interpolate.hpp"
+#include "raykit/anim/skeleton.hpp"
+#include "raykit/anim/skinning.hpp"
 #include "raykit/io/obj.hpp"
+#include "raykit/io/smd.hpp"
 #include "raykit/render/render_cpu.hpp"
 #if defined(RAYKIT_BENCH_HAVE_CL)
 #include "raykit/cl.hpp"
@@ -63,6 +74,77 @@ struct BenchScene {
 
 std::filesystem::path data(const char* rel) { return std::filesystem::path(RAYKIT_SHARED_DATA_DIR) / rel; }
 
+/// Animation frame of the goblin case (the "frame 100 onward", taken as one still frame).
+constexpr double kGoblinFrame = 100.0;
+
+/// The thesis scene with the HL2 goblin skinned at kGoblinFrame, and the camera, as
+/// `raykit animate Goblin_Reference.smd Goblin_Anim.smd OUT --scene Scene.obj` makes them with
+/// its defaults (examples/cli_animate.hpp): 1.8 units tall, yaw -50, feet on the first surface
+/// below the scene's centre, static triangles first; the camera frames the placed bind pose.
+/// nullopt when a data file is missing.
+std::optional<std::pair<Mesh, Camera>> thesis_with_goblin() {
+    const auto ref = data("smd/hl2_goblin/Goblin_Reference.smd"), anim_file = data("smd/hl2_goblin/Goblin_Anim.smd");
+    const auto obj = data("obj/thesis_scene/Scene.obj");
+    if (!std::filesystem::exists(ref) || !std::filesystem::exists(anim_file) || !std::filesystem::exists(obj))
+        return std::nullopt;
+    const SmdModel model = load_smd_reference(ref);
+    const SmdSkeletonAnim anim = load_smd_animation(anim_file, model);
+    const Mesh& cm = model.mesh;
+    Mesh m = load_obj(obj);
+
+    AABB rest, stat;
+    for (const vec3& p : cm.positions) rest.grow(p);
+    for (const vec3& p : m.positions) stat.grow(p);
+    const float scale = 1.8f / (rest.max.z - rest.min.z);  // SMD is Z-up
+    const float px = 0.5f * (stat.min.x + stat.max.x), pz = 0.5f * (stat.min.z + stat.max.z);
+    Ray down;
+    down.org = vec3(px, stat.max.y + 1.0f, pz);
+    down.dir = vec3(0.0f, -1.0f, 0.0f);
+    const Hit ground_hit = intersect_closest(MeshView(m), build_bvh(MeshView(m), BuildOptions{}), down);
+    const float ground = ground_hit.valid() ? down.org.y - ground_hit.t : stat.min.y;
+    mat4 P = glm::translate(mat4(1.0f), vec3(px, ground - rest.min.z * scale, pz));
+    P = glm::rotate(P, glm::radians(-50.0f), vec3(0.0f, 1.0f, 0.0f));
+    P = glm::scale(P, vec3(scale));
+    P = glm::rotate(P, glm::radians(-90.0f), vec3(1.0f, 0.0f, 0.0f));
+
+    // animate folds P into the bone matrices; placing the skinned vertices afterwards gives the
+    // same pose up to rounding.
+    const std::size_t nv = cm.positions.size();
+    std::vector<vec3> pos(nv), nor(cm.normals.empty() ? 0 : nv);
+    const std::vector<SkinMatrix> mats = skin_matrices(
+        Skeleton(model), sample_frame(anim, kGoblinFrame, Interpolation::slerp, WrapMode::loop));
+    skin_vertices(pack_skin(model.weights, model.bones.size()), mats, cm.positions, cm.normals, pos, nor, 1);
+
+    const std::size_t v0 = m.positions.size(), t0 = m.triangles.size();
+    const auto m0 = static_cast<std::uint32_t>(m.materials.size());
+    if (m.normals.empty()) m.normals.assign(v0, vec3(0.0f));  // zero: the shader falls back to the face normal
+    const bool with_uv = !m.texcoords.empty() || !cm.texcoords.empty();
+    if (with_uv) m.texcoords.resize(v0, vec2(0.0f));
+    const mat3 R(P);  // rotation times a uniform scale: normals keep their direction
+    for (std::size_t i = 0; i < nv; ++i) {
+        m.positions.push_back(vec3(P * vec4(pos[i], 1.0f)));
+        m.normals.push_back(nor.empty() ? vec3(0.0f) : R * nor[i]);
+        if (with_uv) m.texcoords.push_back(cm.texcoords.empty() ? vec2(0.0f) : cm.texcoords[i]);
+    }
+    m.material_ids.resize(t0, kNoMaterial);
+    for (std::size_t t = 0; t < cm.triangles.size(); ++t) {
+        Triangle tri = cm.triangles[t];
+        for (auto& v : tri.v) v += static_cast<std::uint32_t>(v0);
+        m.triangles.push_back(tri);
+        const std::uint32_t id = t < cm.material_ids.size() ? cm.material_ids[t] : kNoMaterial;
+        m.material_ids.push_back(id == kNoMaterial ? kNoMaterial : id + m0);
+    }
+    m.materials.insert(m.materials.end(), cm.materials.begin(), cm.materials.end());
+
+    AABB placed;
+    for (const vec3& p : cm.positions) placed.grow(vec3(P * vec4(p, 1.0f)));
+    const vec3 c = placed.center(), h = 1.5f * (placed.max - placed.min);
+    AABB wide;
+    wide.grow(c - h);
+    wide.grow(c + h);
+    return std::make_pair(std::move(m), frame_scene(wide, kWidth, kHeight, 45.0f, vec3(0.8f, 0.35f, 1.0f)));
+}
+
 /// Loaded once per (scene, mirror) pair; nullptr when the data file is missing.
 const BenchScene* bench_scene(const std::string& name, bool mirror) {
     static std::mutex m;
@@ -70,11 +152,19 @@ const BenchScene* bench_scene(const std::string& name, bool mirror) {
     std::lock_guard lock(m);
     auto key = std::make_pair(name, mirror);
     if (auto it = cache.find(key); it != cache.end()) return it->second.get();
-    const std::filesystem::path file =
-        name == "thesis" ? data("obj/thesis_scene/Scene.obj") : data("obj/stanford_bunny/stanford-bunny.obj");
-    if (!std::filesystem::exists(file)) return (cache[key] = nullptr).get();
     auto s = std::make_unique<BenchScene>();
-    Mesh mesh = load_obj(file);
+    Mesh mesh;
+    if (name == "goblin") {
+        auto g = thesis_with_goblin();
+        if (!g) return (cache[key] = nullptr).get();
+        mesh = std::move(g->first);
+        s->cam = g->second;
+    } else {
+        const std::filesystem::path file =
+            name == "thesis" ? data("obj/thesis_scene/Scene.obj") : data("obj/stanford_bunny/stanford-bunny.obj");
+        if (!std::filesystem::exists(file)) return (cache[key] = nullptr).get();
+        mesh = load_obj(file);
+    }
     if (mirror) {
         if (mesh.materials.empty()) {
             mesh.materials.emplace_back();
@@ -93,6 +183,8 @@ const BenchScene* bench_scene(const std::string& name, bool mirror) {
         s->cam.width = kWidth;
         s->cam.height = kHeight;
         s->rs.lights.push_back(Light::point(vec3(-25.0f, 35.0f, 30.0f)));
+    } else if (name == "goblin") {
+        s->rs.lights.push_back(default_key_light(s->cam));
     } else {
         s->cam = frame_scene(s->rs.bounds(), kWidth, kHeight);
         s->rs.lights.push_back(default_key_light(s->cam));
@@ -130,14 +222,18 @@ void run(benchmark::State& state, const std::string& scene, const std::string& v
     const RenderSettings set = settings(variant, spp, threads);
     const ShadeScene view = s->rs.view();
     RenderStats st;
-    std::uint64_t rays = 0;
+    std::uint64_t rays = 0, frames = 0;
+    double frame_ms = 0.0;
     for (auto _ : state) {
         Image img = render_cpu(view, s->cam, set, &st);
         benchmark::DoNotOptimize(img.pixels.data());
         rays += st.rays.total();
+        frame_ms += st.total_ms;
+        ++frames;
     }
     const std::uint64_t per_frame = st.rays.total();
     state.counters["Mrays_s"] = benchmark::Counter(double(rays) * 1e-6, benchmark::Counter::kIsRate);
+    state.counters["frame_ms"] = frames ? frame_ms / double(frames) : 0.0;
     state.counters["rays"] = double(per_frame);
     RenderSettings prof = set;
     prof.time_stages = true;
@@ -202,9 +298,13 @@ void run_device(benchmark::State& state, const std::string& scene, const std::st
 #endif
 
 const bool registered = [] {
-    for (const char* scene : {"thesis", "bunny"})
+    for (const char* scene : {"thesis", "goblin", "bunny"})
         for (const char* variant : {"primary", "noshadow", "full", "mirror"})
             for (unsigned spp : {1u, 4u}) {
+                // the goblin case is the frame (1 spp, shadows) and its camera-ray part only
+                if (std::string(scene) == "goblin" && (spp != 1 || (std::string(variant) != "full" &&
+                                                                    std::string(variant) != "primary")))
+                    continue;
                 const std::string base =
                     std::string("render/") + scene + "/" + variant + "/spp:" + std::to_string(spp);
                 for (unsigned threads : {1u, 2u})
