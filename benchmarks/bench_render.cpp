@@ -11,8 +11,8 @@
 //            goblin  the thesis scene with the HL2 goblin (RAYKIT_SHARED_DATA_DIR/smd/hl2_goblin, 2.4k
 //                    triangles) skinned at animation frame 100, placed, and seen by the camera and
 //                    key light, as `raykit animate REF ANIM OUT --scene Scene.obj` does by default;
-//                    one still frame, one BVH built over all triangles (animate refits the goblin's
-//                    own tree under a hand-spliced root); full and primary at 1 spp only
+//                    one still frame; full and primary at 1 spp only, on one BVH over all
+//                    triangles with LeafTriangles (prepare_render_scene, as the other scenes)
 //            bunny   RAYKIT_SHARED_DATA_DIR/obj/stanford_bunny/stanford-bunny.obj (69k triangles, no
 //                    materials), raykit::frame_scene + raykit::default_key_light
 //   variant  primary   depth shader: camera rays + closest hit only
@@ -20,6 +20,10 @@
 //            full      whitted, max depth 1 (one reflection bounce), shadow rays — the target
 //            mirror    full, with every material made a mirror (illum 3, Ks 0.3): one reflection ray
 //                      per hit, so the bounce is exercised (the thesis scene has no reflective material)
+//            animate   goblin only: full on animate's own render tree at the first frame it renders
+//                      (the static scene's tree and the character's, spliced under one root by
+//                      examples/cli_animate.hpp's CombinedTree; no LeafTriangles copy), i.e. the
+//                      frame `raykit animate` renders today
 //   N        1, 4 samples per pixel;  T  1, 2 threads
 // Load, BVH build, LeafTriangles, texture loading, the device upload and the device program
 // build (one untimed frame) are done once, outside the timing.
@@ -85,6 +89,7 @@
 #include "raykit/io/obj.hpp"
 #include "raykit/io/smd.hpp"
 #include "raykit/render/render_cpu.hpp"
+#include "../examples/cli_animate.hpp"  // CombinedTree: the goblin/animate case's tree, as animate splices it
 #if defined(RAYKIT_BENCH_HAVE_CL)
 #include "raykit/cl.hpp"
 #include "raykit/cl/render.hpp"
@@ -104,6 +109,7 @@ struct BenchScene {
     RenderScene rs;
     Camera cam;
     std::size_t goblin_first_tri = SIZE_MAX;  ///< the goblin case: its first character triangle
+    std::optional<Bvh> animate_bvh;           ///< the goblin case: raykit animate's spliced tree
 };
 
 std::filesystem::path data(const char* rel) { return std::filesystem::path(RAYKIT_SHARED_DATA_DIR) / rel; }
@@ -116,6 +122,7 @@ struct GoblinScene {
     Mesh mesh;
     Camera cam;
     std::size_t first_character_triangle = 0;
+    Bvh animate_bvh;  ///< animate's render tree at its first frame (over `mesh`)
 };
 
 /// The thesis scene with the HL2 goblin skinned at kGoblinFrame, and the camera, as
@@ -141,7 +148,8 @@ std::optional<GoblinScene> thesis_with_goblin() {
     Ray down;
     down.org = vec3(px, stat.max.y + 1.0f, pz);
     down.dir = vec3(0.0f, -1.0f, 0.0f);
-    const Hit ground_hit = intersect_closest(MeshView(m), build_bvh(MeshView(m), BuildOptions{}), down);
+    const Bvh static_bvh = build_bvh<BinnedSahBuilder>(MeshView(m), BinnedSahBuilder::Config{});  // Scene::add_object's
+    const Hit ground_hit = intersect_closest(MeshView(m), static_bvh, down);
     const float ground = ground_hit.valid() ? down.org.y - ground_hit.t : stat.min.y;
     mat4 P = glm::translate(mat4(1.0f), vec3(px, ground - rest.min.z * scale, pz));
     P = glm::rotate(P, glm::radians(-50.0f), vec3(0.0f, 1.0f, 0.0f));
@@ -177,13 +185,22 @@ std::optional<GoblinScene> thesis_with_goblin() {
     }
     m.materials.insert(m.materials.end(), cm.materials.begin(), cm.materials.end());
 
+    // animate's tree at the frame it first renders: the static tree and one built over the
+    // character's placed vertices, spliced under a common root
+    const std::span<const vec3> char_pos(m.positions.data() + v0, nv);
+    const Bvh char_bvh = build_bvh(MeshView(char_pos, cm.triangles), BuildOptions{});
+    raykit_cli::detail_animate::CombinedTree tree;
+    tree.set_static(static_bvh, static_cast<std::uint32_t>(t0));
+    tree.set_character(char_bvh.nodes, char_bvh.prim_ids, true);
+
     AABB placed;
     for (const vec3& p : cm.positions) placed.grow(vec3(P * vec4(p, 1.0f)));
     const vec3 c = placed.center(), h = 1.5f * (placed.max - placed.min);
     AABB wide;
     wide.grow(c - h);
     wide.grow(c + h);
-    return GoblinScene{std::move(m), frame_scene(wide, kWidth, kHeight, 45.0f, vec3(0.8f, 0.35f, 1.0f)), t0};
+    return GoblinScene{std::move(m), frame_scene(wide, kWidth, kHeight, 45.0f, vec3(0.8f, 0.35f, 1.0f)), t0,
+                       std::move(tree.bvh)};
 }
 
 /// Loaded once per (scene, mirror) pair; nullptr when the data file is missing.
@@ -201,6 +218,7 @@ const BenchScene* bench_scene(const std::string& name, bool mirror) {
         mesh = std::move(g->mesh);
         s->cam = g->cam;
         s->goblin_first_tri = g->first_character_triangle;
+        s->animate_bvh = std::move(g->animate_bvh);
     } else {
         const std::filesystem::path file =
             name == "thesis" ? data("obj/thesis_scene/Scene.obj") : data("obj/stanford_bunny/stanford-bunny.obj");
@@ -262,7 +280,10 @@ void run(benchmark::State& state, const std::string& scene, const std::string& v
         return;
     }
     const RenderSettings set = settings(variant, spp, threads);
-    const ShadeScene view = s->rs.view();
+    // animate renders its spliced tree without the LeafTriangles copy
+    const ShadeScene view = variant == "animate" ? make_shade_scene(s->rs.mesh, *s->animate_bvh, s->rs.materials,
+                                                                    s->rs.lights)
+                                                 : s->rs.view();
     RenderStats st;
     std::uint64_t rays = 0, frames = 0;
     double frame_ms = 0.0;
@@ -673,11 +694,12 @@ void run_embree(benchmark::State& state, const std::string& scene, bool packets,
 
 const bool registered = [] {
     for (const char* scene : {"thesis", "goblin", "bunny"})
-        for (const char* variant : {"primary", "noshadow", "full", "mirror"})
+        for (const char* variant : {"primary", "noshadow", "full", "mirror", "animate"})
             for (unsigned spp : {1u, 4u}) {
-                // the goblin case is the frame (1 spp, shadows) and its camera-ray part only
-                if (std::string(scene) == "goblin" && (spp != 1 || (std::string(variant) != "full" &&
-                                                                    std::string(variant) != "primary")))
+                // the goblin case is the frame (1 spp, shadows) and its camera-ray part only;
+                // animate is a goblin variant
+                const std::string sc = scene, va = variant;
+                if (sc == "goblin" ? spp != 1 || (va != "full" && va != "primary" && va != "animate") : va == "animate")
                     continue;
                 const std::string base =
                     std::string("render/") + scene + "/" + variant + "/spp:" + std::to_string(spp);
@@ -688,6 +710,7 @@ const bool registered = [] {
                         ->UseRealTime()
                         ->MinTime(spp == 1 ? 1.0 : 2.0);
 #if defined(RAYKIT_BENCH_HAVE_CL)
+                if (va == "animate") continue;  // the device renderer uploads its own single tree
                 benchmark::RegisterBenchmark((base + "/device:cl").c_str(),
                                              [=](benchmark::State& st) { run_device(st, scene, variant, spp); })
                     ->Unit(benchmark::kMillisecond)
