@@ -211,16 +211,18 @@ inline AnimateArgs parse_animate_args(int argc, char** argv, int first_arg) {
     auto need = [&](int i, int n, const std::string& opt) {
         if (i + n >= argc) throw RaykitCliAnimateUsageError(opt + " needs " + std::to_string(n) + " value(s)");
     };
-    auto count = [&](const std::string& opt, double v, double lo) {
-        // the same ranges as `raykit render` (cli_render.hpp) where the flags are the same
-        const double hi = opt == "--threads"                      ? double(raykit::kMaxThreads)
-                          : opt == "--width" || opt == "--height" ? 65536.0
-                          : opt == "--spp"                        ? 65536.0
-                          : opt == "--max-depth"                  ? 1000.0
-                                                                  : 1e9;
-        if (v < lo || v != std::floor(v) || v > hi)
-            throw RaykitCliAnimateUsageError(opt + " must be an integer in " + std::to_string(long(lo)) + ".." +
-                                             std::to_string(long(hi)));
+    // integer flags: the parser and ranges of `raykit render` (cli_render.hpp) where the flags are the same
+    auto count = [&](const std::string& opt, const char* text) {
+        namespace cr = raykit::detail::cli_render;
+        const std::uint64_t lo = (opt == "--first" || opt == "--threads" || opt == "--max-depth") ? 0 : 1;
+        const std::uint64_t hi = opt == "--threads"                      ? raykit::kMaxThreads
+                                 : opt == "--width" || opt == "--height" ? cr::kMaxSide
+                                 : opt == "--spp"                        ? cr::kMaxSpp
+                                 : opt == "--max-depth"                  ? cr::kMaxDepth
+                                                                         : 1000000000;
+        std::uint64_t v = 0;
+        if (std::string why = cr::count_problem(opt, text, lo, hi, v); !why.empty())
+            throw RaykitCliAnimateUsageError(why);
         return v;
     };
     for (int i = first_arg; i < argc; ++i) {
@@ -245,8 +247,7 @@ inline AnimateArgs parse_animate_args(int argc, char** argv, int first_arg) {
         } else if (s == "--frames" || s == "--first" || s == "--width" || s == "--height" || s == "--spp" ||
                    s == "--threads" || s == "--max-depth") {
             need(i, 1, s);
-            const double lo = (s == "--first" || s == "--threads" || s == "--max-depth") ? 0.0 : 1.0;
-            const double v = count(s, number(s, argv[++i]), lo);
+            const std::uint64_t v = count(s, argv[++i]);
             if (s == "--frames") a.frames = long(v);
             else if (s == "--first") a.first = long(v);
             else if (s == "--width") a.width = std::uint32_t(v);

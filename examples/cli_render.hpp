@@ -175,6 +175,12 @@ inline vec3 vec3_at(const std::string& opt, const std::vector<std::string>& v, s
 
 /// Largest image `render` makes, in pixels (see the header comment).
 inline constexpr std::uint64_t kMaxPixels = std::uint64_t(1) << 24;
+/// Largest --width / --height.
+inline constexpr std::uint64_t kMaxSide = 65536;
+/// Largest --spp.
+inline constexpr std::uint64_t kMaxSpp = 65536;
+/// Largest --max-depth.
+inline constexpr std::uint64_t kMaxDepth = 1000;
 
 /// Parses `s`, the value of `opt`, as an integer in [lo, hi] into `out`; returns why it is not one
 /// ("" when it is). Accepts "+N" and integral exponent forms ("1e6"); a negative or huge value is
@@ -319,15 +325,15 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
 #endif
     if (device != "cpu" && device != "cl") throw RaykitCliRenderUsageError("unknown --device '" + device + "' (known: cpu, cl)");
 
-    const auto width = cr::count_or<std::uint32_t>(p, "--width", 640, 1, 65536);
-    const auto height = cr::count_or<std::uint32_t>(p, "--height", 480, 1, 65536);
+    const auto width = cr::count_or<std::uint32_t>(p, "--width", 640, 1, cr::kMaxSide);
+    const auto height = cr::count_or<std::uint32_t>(p, "--height", 480, 1, cr::kMaxSide);
     if (std::uint64_t(width) * height > cr::kMaxPixels)
         throw RaykitCliRenderUsageError("the image must be at most " + std::to_string(cr::kMaxPixels) + " pixels, " +
                                         std::to_string(width) + " x " + std::to_string(height) + " is " +
                                         std::to_string(std::uint64_t(width) * height));
     RenderSettings set;
-    set.spp = cr::count_or<unsigned>(p, "--spp", 1, 1, 65536);
-    set.shade.max_depth = cr::count_or<unsigned>(p, "--max-depth", 5, 0, 1000);
+    set.spp = cr::count_or<unsigned>(p, "--spp", 1, 1, cr::kMaxSpp);
+    set.shade.max_depth = cr::count_or<unsigned>(p, "--max-depth", 5, 0, cr::kMaxDepth);
     try {
         if (auto* v = p.last("--shader")) set.shade.shader = parse_shader((*v)[0]);
         if (auto* v = p.last("--filter")) set.shade.filter = parse_texture_filter((*v)[0]);

@@ -171,6 +171,14 @@ struct ImageLimits {
     std::uint64_t max_file_bytes = kMaxImageFileBytes;  ///< largest file
 };
 
+/// Empty when a w x h image is within `lim`, else the reason (naming the size and the limits).
+inline std::string image_size_problem(std::uint64_t w, std::uint64_t h, const ImageLimits& lim) {
+    if (w == 0 || h == 0) return "image has no pixels (" + std::to_string(w) + " x " + std::to_string(h) + ")";
+    if (w <= lim.max_side && h <= lim.max_side && w * h <= lim.max_pixels) return {};
+    return std::to_string(w) + " x " + std::to_string(h) + " pixels is over raykit's image limit (" +
+           std::to_string(lim.max_side) + " per side, " + std::to_string(lim.max_pixels) + " pixels)";
+}
+
 struct Image {
     std::uint32_t width = 0;
     std::uint32_t height = 0;
@@ -278,9 +286,7 @@ inline Image read_pfm(const std::filesystem::path& file, const ImageLimits& lim 
     if (!(in >> magic >> w >> h >> scale)) throw fail("malformed header");
     if (magic != "PF" && magic != "Pf") throw fail("not a PFM file (magic '" + magic + "')");
     if (w <= 0 || h <= 0 || scale == 0.0 || !std::isfinite(scale)) throw fail("bad size or scale");
-    if (std::uint64_t(w) > lim.max_side || std::uint64_t(h) > lim.max_side ||
-        std::uint64_t(w) * std::uint64_t(h) > lim.max_pixels)
-        throw fail(std::to_string(w) + " x " + std::to_string(h) + " pixels is over raykit's image limit");
+    if (std::string why = image_size_problem(std::uint64_t(w), std::uint64_t(h), lim); !why.empty()) throw fail(why);
     const int comp = magic == "PF" ? 3 : 1;
     // the pixels must be in the file before an image is allocated for them
     const std::uint64_t need = std::uint64_t(w) * std::uint64_t(h) * std::uint64_t(comp) * 4;

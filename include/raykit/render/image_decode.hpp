@@ -72,11 +72,7 @@ inline std::uint32_t image_be32(const std::uint8_t* p) noexcept {
 
 /// Throws unless w x h is a non-empty size within the limits.
 inline void image_check_size(std::uint64_t w, std::uint64_t h, const std::string& name, const ImageLimits& lim) {
-    if (w == 0 || h == 0) image_fail(name, "image has no pixels (" + std::to_string(w) + " x " + std::to_string(h) + ")");
-    if (w > lim.max_side || h > lim.max_side || w * h > lim.max_pixels)
-        image_fail(name, std::to_string(w) + " x " + std::to_string(h) + " pixels is over raykit's image limit (" +
-                             std::to_string(lim.max_side) + " per side, " + std::to_string(lim.max_pixels) +
-                             " pixels)");
+    if (std::string why = image_size_problem(w, h, lim); !why.empty()) image_fail(name, why);
 }
 
 inline bool image_ends_with_tga(std::string_view name) noexcept {

@@ -69,6 +69,20 @@ struct BlockBvhT {
     /// over). Throws std::domain_error for a vertex beyond ±2^32 (math/limits.hpp).
     static BlockBvhT make(const MeshView& mesh, const Tree& src, unsigned threads = 0) {
         check_positions(mesh.positions, "raykit::BlockBvh::make");
+        return assemble(mesh, src, threads);
+    }
+    /// Builds a tree for blocks over `mesh` (binned SAH, sah_config()) and makes them.
+    /// (primitive_refs has checked the range: the blocks are assembled without a second pass.)
+    static BlockBvhT build(const MeshView& mesh, unsigned threads = 0) {
+        const PrimitiveRefs r = primitive_refs(mesh, threads);
+        const Bvh bvh = BinnedSahBuilder::build(r.boxes, r.centers, sah_config(threads));
+        if constexpr (W == 2) return assemble(mesh, bvh, threads);
+        else return assemble(mesh, WideBvhT<W>::collapse(bvh), threads);
+    }
+
+  private:
+    /// make() without the range check.
+    static BlockBvhT assemble(const MeshView& mesh, const Tree& src, unsigned threads) {
         BlockBvhT b;
         b.tree.nodes = src.nodes;
         if constexpr (W != 2) b.tree.bounds = src.bounds;
@@ -109,6 +123,8 @@ struct BlockBvhT {
         });
         return b;
     }
+
+  public:
     /// Builder settings for trees traced through blocks: the SAH counts leaf
     /// cost in blocks of 4 (Config::leaf_block) and leaves hold up to 3 blocks.
     /// On the bunny and the generated tori this takes random rays from
@@ -120,14 +136,6 @@ struct BlockBvhT {
         c.threads = threads;
         return c;
     }
-    /// Builds a tree for blocks over `mesh` (binned SAH, sah_config()) and makes them.
-    static BlockBvhT build(const MeshView& mesh, unsigned threads = 0) {
-        const PrimitiveRefs r = primitive_refs(mesh, threads);
-        const Bvh bvh = BinnedSahBuilder::build(r.boxes, r.centers, sah_config(threads));
-        if constexpr (W == 2) return make(mesh, bvh, threads);
-        else return make(mesh, WideBvhT<W>::collapse(bvh), threads);
-    }
-
     /// Collapses `bvh` to W wide and makes the blocks.
     static BlockBvhT make(const MeshView& mesh, const Bvh& bvh, unsigned threads = 0)
         requires(W != 2)

@@ -244,18 +244,27 @@ public:
             if (!m.normals.empty()) m.normals[i] = v.normal;
             if (!m.texcoords.empty()) m.texcoords[i] = v.uv;
         });
+        refit_object(object);
+        // the range check of the per-frame path is one test of the refitted root box, not a
+        // pass over the vertices; the vertices are searched only to name the culprit
+        const AABB root = o.bounds();
+        if (root.is_empty() || (coordinate_in_range(root.min.x) && coordinate_in_range(root.min.y) &&
+                                coordinate_in_range(root.min.z) && coordinate_in_range(root.max.x) &&
+                                coordinate_in_range(root.max.y) && coordinate_in_range(root.max.z)))
+            return;
+        std::string why = "raykit::Scene::move_vertices: the object's box leaves [-2^32, 2^32] (raykit/math/limits.hpp)";
         try {
             check_positions(m.positions, "raykit::Scene::move_vertices");
-        } catch (...) {
-            for (std::size_t i = 0; i < o.rest.size(); ++i) {
-                m.positions[i] = o.rest[i].position;
-                if (!m.normals.empty()) m.normals[i] = o.rest[i].normal;
-                if (!m.texcoords.empty()) m.texcoords[i] = o.rest[i].uv;
-            }
-            refit_object(object);
-            throw;
+        } catch (const std::domain_error& e) {
+            why = e.what();
+        }
+        for (std::size_t i = 0; i < o.rest.size(); ++i) {
+            m.positions[i] = o.rest[i].position;
+            if (!m.normals.empty()) m.normals[i] = o.rest[i].normal;
+            if (!m.texcoords.empty()) m.texcoords[i] = o.rest[i].uv;
         }
         refit_object(object);
+        throw std::domain_error(why);
     }
 
     /// Sets a dynamic object's current positions directly (one per vertex;
