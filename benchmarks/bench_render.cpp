@@ -9,10 +9,10 @@
 //                    (the view of docs/thesis_scene.png). Its MTL has RGBA foliage textures, but no
 //                    triangle uses those materials: nothing is alpha-tested in this frame
 //            goblin  the thesis scene with the HL2 goblin (RAYKIT_SHARED_DATA_DIR/smd/hl2_goblin, 2.4k
-//                    triangles) skinned at animation frame 100, placed, and seen by the camera and
-//                    key light, as `raykit animate REF ANIM OUT --scene Scene.obj` does by default;
-//                    one still frame; full and primary at 1 spp only, on one BVH over all
-//                    triangles with LeafTriangles (prepare_render_scene, as the other scenes)
+//                    triangles) as `raykit animate REF ANIM OUT --scene Scene.obj` sets it up by
+//                    default: a Scene of two objects (the static scene; the character, dynamic,
+//                    placed by its instance's transform) moved to animation frame 100 by a
+//                    FrameLoop (render/frame.hpp); full and primary at 1 spp render that frame
 //            bunny   RAYKIT_SHARED_DATA_DIR/obj/stanford_bunny/stanford-bunny.obj (69k triangles, no
 //                    materials), raykit::frame_scene + raykit::default_key_light
 //   variant  primary   depth shader: camera rays + closest hit only
@@ -20,12 +20,12 @@
 //            full      whitted, max depth 1 (one reflection bounce), shadow rays — the target
 //            mirror    full, with every material made a mirror (illum 3, Ks 0.3): one reflection ray
 //                      per hit, so the bounce is exercised (the thesis scene has no reflective material)
-//            animate   goblin only: full on animate's own render tree at the first frame it renders
-//                      (the static scene's tree and the character's, spliced under one root by
-//                      examples/cli_animate.hpp's CombinedTree; no LeafTriangles copy), i.e. the
-//                      frame `raykit animate` renders today
+//            animate   goblin only: whole frames of the frame loop, animation frames 100, 101, ...
+//                      per iteration: interpolation + skin matrices, the vertex hook (SkinHook's CPU
+//                      twin), refit (or rebuild) of the character's trees, top level, full render;
+//                      counters interp_ms, vertex_ms, refit_ms, top_ms, trace_ms, shade_ms, frame_ms
 //   N        1, 4 samples per pixel;  T  1, 2 threads
-// Load, BVH build, LeafTriangles, texture loading, the device upload and the device program
+// Load, tree builds, texture loading, the device upload and the device program
 // build (one untimed frame) are done once, outside the timing.
 //
 // Counters (per frame): Mrays_s (all rays traced per second of wall time), rays, and per stage
@@ -89,7 +89,8 @@
 #include "raykit/io/obj.hpp"
 #include "raykit/io/smd.hpp"
 #include "raykit/render/render_cpu.hpp"
-#include "../examples/cli_animate.hpp"  // CombinedTree: the goblin/animate case's tree, as animate splices it
+#include "raykit/anim/skin_hook.hpp"
+#include "raykit/render/frame.hpp"
 #if defined(RAYKIT_BENCH_HAVE_CL)
 #include "raykit/cl.hpp"
 #include "raykit/cl/render.hpp"
@@ -105,137 +106,143 @@ using namespace raykit;
 
 constexpr std::uint32_t kWidth = 640, kHeight = 480;
 
+/// The goblin's animation and the frame loop that moves it (the goblin case).
+struct GoblinAnim {
+    SmdModel model;
+    SmdSkeletonAnim anim;
+    Skeleton skeleton;
+    PackedSkin skin;
+    std::unique_ptr<FrameLoop> loop;
+    double interp_ms = 0.0;  ///< the last frame's interpolation + skin matrices
+};
+
 struct BenchScene {
     RenderScene rs;
     Camera cam;
-    std::size_t goblin_first_tri = SIZE_MAX;  ///< the goblin case: its first character triangle
-    std::optional<Bvh> animate_bvh;           ///< the goblin case: raykit animate's spliced tree
+    std::uint32_t goblin_inst = kInvalidIndex;  ///< the goblin case: the character's instance
+    std::unique_ptr<GoblinAnim> goblin;
+    /// The scene's triangles in world space as one mesh, for Embree: flat triangle k is
+    /// triangle k - inst_base[inst] of instance inst = flat_inst[k].
+    Mesh flat;
+    std::vector<std::uint32_t> flat_inst, inst_base;
+
+    /// A scene hit as a flat triangle index, and back.
+    std::uint32_t flat_index(const Hit& h) const { return inst_base[h.inst] + h.prim; }
+    Hit scene_hit(float t, float u, float v, std::uint32_t flat_prim) const {
+        const std::uint32_t inst = flat_inst[flat_prim];
+        return Hit{t, u, v, flat_prim - inst_base[inst], inst};
+    }
 };
 
 std::filesystem::path data(const char* rel) { return std::filesystem::path(RAYKIT_SHARED_DATA_DIR) / rel; }
 
-/// Animation frame of the goblin case (the "frame 100 onward", taken as one still frame).
+/// Animation frame of the goblin case (the "frame 100 onward").
 constexpr double kGoblinFrame = 100.0;
 
-/// The goblin case's mesh (static triangles first, then the character's) and camera.
-struct GoblinScene {
-    Mesh mesh;
-    Camera cam;
-    std::size_t first_character_triangle = 0;
-    Bvh animate_bvh;  ///< animate's render tree at its first frame (over `mesh`)
-};
+/// Moves the goblin to animation frame `f` through its frame loop (vertex hook, refit, top).
+void goblin_to(BenchScene& s, double f, unsigned threads) {
+    GoblinAnim& g = *s.goblin;
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::vector<SkinMatrix> mats =
+        skin_matrices(g.skeleton, sample_frame(g.anim, f, Interpolation::slerp, WrapMode::loop));
+    g.interp_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const SkinHook::Host host{g.skin.offsets, g.skin.links, mats};
+    g.loop->update(vertex_hook(
+        [&](std::uint32_t, const Vertex& v, std::uint32_t i) { return SkinHook::apply(v, i, {}, host); }, threads));
+}
 
-/// The thesis scene with the HL2 goblin skinned at kGoblinFrame, and the camera, as
-/// `raykit animate Goblin_Reference.smd Goblin_Anim.smd OUT --scene Scene.obj` makes them with
-/// its defaults (examples/cli_animate.hpp): 1.8 units tall, yaw -50, feet on the first surface
-/// below the scene's centre; the camera frames the placed bind pose. nullopt when a data file
-/// is missing.
-std::optional<GoblinScene> thesis_with_goblin() {
+/// The thesis scene with the HL2 goblin as `raykit animate Goblin_Reference.smd Goblin_Anim.smd
+/// OUT --scene Scene.obj` sets it up with its defaults (examples/cli_animate.hpp): two objects,
+/// the static scene and the dynamic character placed by its instance (1.8 units tall, yaw -50,
+/// feet on the first surface below the scene's centre), moved to kGoblinFrame by a FrameLoop;
+/// the camera frames the placed bind pose. False when a data file is missing.
+bool thesis_with_goblin(BenchScene& s) {
     const auto ref = data("smd/hl2_goblin/Goblin_Reference.smd"), anim_file = data("smd/hl2_goblin/Goblin_Anim.smd");
     const auto obj = data("obj/thesis_scene/Scene.obj");
     if (!std::filesystem::exists(ref) || !std::filesystem::exists(anim_file) || !std::filesystem::exists(obj))
-        return std::nullopt;
-    const SmdModel model = load_smd_reference(ref);
-    const SmdSkeletonAnim anim = load_smd_animation(anim_file, model);
-    const Mesh& cm = model.mesh;
+        return false;
+    auto g = std::make_unique<GoblinAnim>();
+    g->model = load_smd_reference(ref);
+    g->anim = load_smd_animation(anim_file, g->model);
+    g->skeleton = Skeleton(g->model);
+    g->skin = pack_skin(g->model.weights, g->model.bones.size());
+    const Mesh& cm = g->model.mesh;
     Mesh m = load_obj(obj);
-
     AABB rest, stat;
     for (const vec3& p : cm.positions) rest.grow(p);
     for (const vec3& p : m.positions) stat.grow(p);
+    const BuildOptions build = render_build_options();
+    const std::uint32_t town = s.rs.add_object(std::move(m), ObjectKind::static_object, build);
+    const std::uint32_t body = s.rs.add_object(cm, ObjectKind::dynamic, build);
+
     const float scale = 1.8f / (rest.max.z - rest.min.z);  // SMD is Z-up
     const float px = 0.5f * (stat.min.x + stat.max.x), pz = 0.5f * (stat.min.z + stat.max.z);
     Ray down;
     down.org = vec3(px, stat.max.y + 1.0f, pz);
     down.dir = vec3(0.0f, -1.0f, 0.0f);
-    const Bvh static_bvh = build_bvh<BinnedSahBuilder>(MeshView(m), BinnedSahBuilder::Config{});  // Scene::add_object's
-    const Hit ground_hit = intersect_closest(MeshView(m), static_bvh, down);
+    const Hit ground_hit = intersect_closest(s.rs.scene.objects()[town].blocks, down);
     const float ground = ground_hit.valid() ? down.org.y - ground_hit.t : stat.min.y;
     mat4 P = glm::translate(mat4(1.0f), vec3(px, ground - rest.min.z * scale, pz));
     P = glm::rotate(P, glm::radians(-50.0f), vec3(0.0f, 1.0f, 0.0f));
     P = glm::scale(P, vec3(scale));
     P = glm::rotate(P, glm::radians(-90.0f), vec3(1.0f, 0.0f, 0.0f));
+    s.rs.scene.add_instance(town);
+    s.goblin_inst = s.rs.scene.add_instance(body, P);
+    s.rs.scene.update_top_level();
 
-    // animate folds P into the bone matrices; placing the skinned vertices afterwards gives the
-    // same pose up to rounding.
-    const std::size_t nv = cm.positions.size();
-    std::vector<vec3> pos(nv), nor(cm.normals.empty() ? 0 : nv);
-    const std::vector<SkinMatrix> mats = skin_matrices(
-        Skeleton(model), sample_frame(anim, kGoblinFrame, Interpolation::slerp, WrapMode::loop));
-    skin_vertices(pack_skin(model.weights, model.bones.size()), mats, cm.positions, cm.normals, pos, nor, 1);
-
-    const std::size_t v0 = m.positions.size(), t0 = m.triangles.size();
-    const auto m0 = static_cast<std::uint32_t>(m.materials.size());
-    if (m.normals.empty()) m.normals.assign(v0, vec3(0.0f));  // zero: the shader falls back to the face normal
-    const bool with_uv = !m.texcoords.empty() || !cm.texcoords.empty();
-    if (with_uv) m.texcoords.resize(v0, vec2(0.0f));
-    const mat3 R(P);  // rotation times a uniform scale: normals keep their direction
-    for (std::size_t i = 0; i < nv; ++i) {
-        m.positions.push_back(vec3(P * vec4(pos[i], 1.0f)));
-        m.normals.push_back(nor.empty() ? vec3(0.0f) : R * nor[i]);
-        if (with_uv) m.texcoords.push_back(cm.texcoords.empty() ? vec2(0.0f) : cm.texcoords[i]);
-    }
-    m.material_ids.resize(t0, kNoMaterial);
-    for (std::size_t t = 0; t < cm.triangles.size(); ++t) {
-        Triangle tri = cm.triangles[t];
-        for (auto& v : tri.v) v += static_cast<std::uint32_t>(v0);
-        m.triangles.push_back(tri);
-        const std::uint32_t id = t < cm.material_ids.size() ? cm.material_ids[t] : kNoMaterial;
-        m.material_ids.push_back(id == kNoMaterial ? kNoMaterial : id + m0);
-    }
-    m.materials.insert(m.materials.end(), cm.materials.begin(), cm.materials.end());
-
-    // animate's tree at the frame it first renders: the static tree and one built over the
-    // character's placed vertices, spliced under a common root
-    const std::span<const vec3> char_pos(m.positions.data() + v0, nv);
-    const Bvh char_bvh = build_bvh(MeshView(char_pos, cm.triangles), BuildOptions{});
-    raykit_cli::detail_animate::CombinedTree tree;
-    tree.set_static(static_bvh, static_cast<std::uint32_t>(t0));
-    tree.set_character(char_bvh.nodes, char_bvh.prim_ids, true);
-
-    AABB placed;
+    AABB placed;  // the placed vertices' box, as animate frames it
     for (const vec3& p : cm.positions) placed.grow(vec3(P * vec4(p, 1.0f)));
     const vec3 c = placed.center(), h = 1.5f * (placed.max - placed.min);
     AABB wide;
     wide.grow(c - h);
     wide.grow(c + h);
-    return GoblinScene{std::move(m), frame_scene(wide, kWidth, kHeight, 45.0f, vec3(0.8f, 0.35f, 1.0f)), t0,
-                       std::move(tree.bvh)};
+    s.cam = frame_scene(wide, kWidth, kHeight, 45.0f, vec3(0.8f, 0.35f, 1.0f));
+    s.rs.lights.push_back(default_key_light(s.cam));
+    g->loop = std::make_unique<FrameLoop>(s.rs);
+    s.goblin = std::move(g);
+    goblin_to(s, kGoblinFrame, 0);
+    return true;
+}
+
+/// Fills s.flat and its maps from the scene as it stands.
+void flatten(BenchScene& s) {
+    auto [flat, origin] = s.rs.scene.world_mesh();
+    s.flat = std::move(flat);
+    s.flat_inst.resize(origin.size());
+    s.inst_base.assign(s.rs.scene.instances().size(), 0);
+    for (std::size_t k = 0; k < origin.size(); ++k) {
+        s.flat_inst[k] = origin[k].first;
+        if (origin[k].second == 0) s.inst_base[origin[k].first] = static_cast<std::uint32_t>(k);
+    }
 }
 
 /// Loaded once per (scene, mirror) pair; nullptr when the data file is missing.
-const BenchScene* bench_scene(const std::string& name, bool mirror) {
+BenchScene* bench_scene(const std::string& name, bool mirror) {
     static std::mutex m;
     static std::map<std::pair<std::string, bool>, std::unique_ptr<BenchScene>> cache;
     std::lock_guard lock(m);
     auto key = std::make_pair(name, mirror);
     if (auto it = cache.find(key); it != cache.end()) return it->second.get();
     auto s = std::make_unique<BenchScene>();
-    Mesh mesh;
     if (name == "goblin") {
-        auto g = thesis_with_goblin();
-        if (!g) return (cache[key] = nullptr).get();
-        mesh = std::move(g->mesh);
-        s->cam = g->cam;
-        s->goblin_first_tri = g->first_character_triangle;
-        s->animate_bvh = std::move(g->animate_bvh);
+        if (!thesis_with_goblin(*s)) return (cache[key] = nullptr).get();
     } else {
         const std::filesystem::path file =
             name == "thesis" ? data("obj/thesis_scene/Scene.obj") : data("obj/stanford_bunny/stanford-bunny.obj");
         if (!std::filesystem::exists(file)) return (cache[key] = nullptr).get();
-        mesh = load_obj(file);
-    }
-    if (mirror) {
-        if (mesh.materials.empty()) {
-            mesh.materials.emplace_back();
-            for (auto& id : mesh.material_ids) id = 0;
+        Mesh mesh = load_obj(file);
+        if (mirror) {
+            if (mesh.materials.empty()) {
+                mesh.materials.emplace_back();
+                for (auto& id : mesh.material_ids) id = 0;
+            }
+            for (Material& mat : mesh.materials) {
+                mat.illum = 3;
+                mat.ks = vec3(0.3f);
+            }
         }
-        for (Material& mat : mesh.materials) {
-            mat.illum = 3;
-            mat.ks = vec3(0.3f);
-        }
+        s->rs = prepare_render_scene(std::move(mesh));
     }
-    s->rs = prepare_render_scene(std::move(mesh));
     if (name == "thesis") {
         s->cam.position = vec3(20.0f, 8.0f, 24.0f);
         s->cam.target = vec3(0.0f, 2.5f, 0.0f);
@@ -243,12 +250,11 @@ const BenchScene* bench_scene(const std::string& name, bool mirror) {
         s->cam.width = kWidth;
         s->cam.height = kHeight;
         s->rs.lights.push_back(Light::point(vec3(-25.0f, 35.0f, 30.0f)));
-    } else if (name == "goblin") {
-        s->rs.lights.push_back(default_key_light(s->cam));
-    } else {
+    } else if (name == "bunny") {
         s->cam = frame_scene(s->rs.bounds(), kWidth, kHeight);
         s->rs.lights.push_back(default_key_light(s->cam));
     }
+    flatten(*s);
     return (cache[key] = std::move(s)).get();
 }
 
@@ -280,10 +286,34 @@ void run(benchmark::State& state, const std::string& scene, const std::string& v
         return;
     }
     const RenderSettings set = settings(variant, spp, threads);
-    // animate renders its spliced tree without the LeafTriangles copy
-    const ShadeScene view = variant == "animate" ? make_shade_scene(s->rs.mesh, *s->animate_bvh, s->rs.materials,
-                                                                    s->rs.lights)
-                                                 : s->rs.view();
+    if (variant == "animate") {  // whole frames of the frame loop: animation frames 100, 101, ...
+        BenchScene& bs = *bench_scene(scene, false);
+        FrameLoop& loop = *bs.goblin->loop;
+        loop.settings() = set;
+        loop.settings().time_stages = true;
+        double f = kGoblinFrame, sum[7] = {};
+        std::uint64_t frames = 0, rays = 0;
+        for (auto _ : state) {
+            goblin_to(bs, f, threads);
+            Image img = loop.render(bs.cam);
+            benchmark::DoNotOptimize(img.pixels.data());
+            const FrameStats& st = loop.last();
+            const double row[7] = {bs.goblin->interp_ms, st.ms.vertex, st.ms.refit, st.ms.top, st.ms.trace,
+                                   st.ms.shade, bs.goblin->interp_ms + st.ms.total};
+            for (int k = 0; k < 7; ++k) sum[k] += row[k];
+            rays += st.render.rays.total();
+            ++frames;
+            f += 1.0;
+        }
+        goblin_to(bs, kGoblinFrame, threads);  // the other goblin cases render frame 100
+        const double fr = frames ? 1.0 / double(frames) : 0.0;
+        const char* names[7] = {"interp_ms", "vertex_ms", "refit_ms", "top_ms", "trace_ms", "shade_ms", "frame_ms"};
+        for (int k = 0; k < 7; ++k) state.counters[names[k]] = sum[k] * fr;
+        state.counters["rays"] = double(rays) * fr;
+        state.counters["Mrays_s"] = benchmark::Counter(double(rays) * 1e-6, benchmark::Counter::kIsRate);
+        return;
+    }
+    const ShadeScene view = s->rs.view();
     RenderStats st;
     std::uint64_t rays = 0, frames = 0;
     double frame_ms = 0.0;
@@ -324,6 +354,10 @@ void run_device(benchmark::State& state, const std::string& scene, const std::st
     const BenchScene* s = bench_scene(scene, variant == "mirror");
     if (!s) {
         state.SkipWithError((scene + ": data file not found under " RAYKIT_SHARED_DATA_DIR).c_str());
+        return;
+    }
+    if (s->rs.scene.objects().size() != 1) {
+        state.SkipWithError("the device renderer renders one object until it renders a DeviceScene");
         return;
     }
     raykit::cl::DeviceRenderer* r = nullptr;
@@ -388,6 +422,7 @@ struct ShadowRays {
 /// Embree's view of a bench scene: the same triangles, the renderer's camera rays for the
 /// frame, and the cross-check counts (computed once, untimed).
 struct EmbreeFrame {
+    const BenchScene* bs = nullptr;
     ShadeScene view;
     Camera cam;
     vec3 light{0.0f};
@@ -419,7 +454,7 @@ bool shadow_ray(const ShadeScene& s, const Ray& cam, const Hit& hit, vec3 light,
 void make_shadow_rays(const EmbreeFrame& f, const std::vector<Hit>& hits, unsigned threads, ShadowRays& sr) {
     over_rows(kHeight, threads, [&](std::size_t y) {
         for (std::size_t i = y * kWidth; i < (y + 1) * kWidth; ++i)
-            sr.traced[i] = hits[i].valid() && shadow_ray(f.view, f.camera[i], hits[i], f.light, sr.ray[i]);
+            sr.traced[i] = hits[i].valid() && shadow_ray(f.view, f.camera[i], hits[i], f.light, sr.ray[i]);  // scene hits
     });
 }
 
@@ -427,19 +462,20 @@ void make_shadow_rays(const EmbreeFrame& f, const std::vector<Hit>& hits, unsign
 /// a candidate on a texel of an alpha-tested map_Kd with alpha < 0.5 is rejected, so the ray
 /// goes on, for closest and any hit alike.
 void cutout_filter(const RTCFilterFunctionNArguments* args) {
-    const auto& s = *static_cast<const ShadeScene*>(args->geometryUserPtr);
+    const auto& f = *static_cast<const EmbreeFrame*>(args->geometryUserPtr);
     for (unsigned k = 0; k < args->N; ++k) {
         if (args->valid[k] != -1) continue;
-        const std::uint32_t prim = RTCHitN_primID(args->hit, args->N, k);
-        if (detail::cut_out(s, TextureFilter::bilinear, prim, RTCHitN_u(args->hit, args->N, k),
+        const Hit h = f.bs->scene_hit(0.0f, 0.0f, 0.0f, RTCHitN_primID(args->hit, args->N, k));
+        if (detail::cut_out(f.view, TextureFilter::bilinear, h.inst, h.prim, RTCHitN_u(args->hit, args->N, k),
                             RTCHitN_v(args->hit, args->N, k)))
             args->valid[k] = 0;
     }
 }
 
-/// An Embree answer as the raykit Hit the shaders read (Embree's u, v weigh vertices 1 and 2, as raykit's do).
-Hit embree_hit(bool hit, float t, float u, float v, std::uint32_t prim) {
-    return hit ? Hit{t, u, v, prim, 0} : Hit{};
+/// An Embree answer as the raykit scene Hit the shaders read (Embree's u, v weigh vertices 1
+/// and 2, as raykit's do; its triangle is a flat index).
+Hit embree_hit(const EmbreeFrame& f, bool hit, float t, float u, float v, std::uint32_t prim) {
+    return hit ? f.bs->scene_hit(t, u, v, prim) : Hit{};
 }
 
 /// Closest hits of the camera rays, one rtcIntersect1 per ray.
@@ -450,7 +486,7 @@ void embree1_camera(const EmbreeFrame& f, unsigned threads, std::vector<Hit>& hi
         for (std::size_t i = y * kWidth; i < (y + 1) * kWidth; ++i) {
             RTCRayHit rh = rkbench::to_embree(f.camera[i]);
             rtcIntersect1(f.scene, &ctx, &rh);
-            hits[i] = embree_hit(rh.hit.geomID != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar, rh.hit.u, rh.hit.v, rh.hit.primID);
+            hits[i] = embree_hit(f, rh.hit.geomID != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar, rh.hit.u, rh.hit.v, rh.hit.primID);
         }
     });
 }
@@ -508,7 +544,7 @@ void embree16_camera(const EmbreeFrame& f, unsigned threads, std::vector<Hit>& h
             }
             rtcIntersect16(valid, f.scene, &ctx, &rh);
             for (unsigned k = 0; k < 16; ++k)
-                hits[tile_pixel(x0, ty * kTile, k)] = embree_hit(rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID,
+                hits[tile_pixel(x0, ty * kTile, k)] = embree_hit(f, rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID,
                                                                  rh.ray.tfar[k], rh.hit.u[k], rh.hit.v[k], rh.hit.primID[k]);
         }
     });
@@ -539,18 +575,18 @@ void embree16_shadow(const EmbreeFrame& f, unsigned threads, ShadowRays& sr) {
 
 /// Fills f.check: hit and occlusion counts of raykit (the renderer's own trace of these rays),
 /// the renderer itself, Embree single rays and Embree packets, and where they disagree.
-void cross_check(EmbreeFrame& f, const BenchScene& bs, std::size_t goblin_first_tri) {
+void cross_check(EmbreeFrame& f, const BenchScene& bs) {
     const std::size_t n = f.camera.size();
     auto& c = f.check;
-    const detail::Tracer<false, true> alpha{f.view, TextureFilter::bilinear};
-    const detail::Tracer<false, false> opaque{f.view, TextureFilter::bilinear};
+    const detail::Tracer<SceneTrees::blocks, true> alpha{f.view, TextureFilter::bilinear};
+    const detail::Tracer<SceneTrees::blocks, false> opaque{f.view, TextureFilter::bilinear};
     std::vector<Hit> rk(n), e1(n), e16(n);
     ShadowRays srk(n), s1(n), s16(n);
     std::size_t cutout = 0, goblin = 0;
     for (std::size_t i = 0; i < n; ++i) {
         rk[i] = f.view.alpha_testing ? alpha.closest(f.camera[i]) : opaque.closest(f.camera[i]);
         if (f.view.alpha_testing) cutout += opaque.closest(f.camera[i]).prim != rk[i].prim;
-        goblin += rk[i].valid() && rk[i].prim >= goblin_first_tri;
+        goblin += rk[i].valid() && rk[i].inst == bs.goblin_inst;
     }
     make_shadow_rays(f, rk, 1, srk);
     for (std::size_t i = 0; i < n; ++i)
@@ -575,7 +611,7 @@ void cross_check(EmbreeFrame& f, const BenchScene& bs, std::size_t goblin_first_
     // a different triangle at (nearly) the same distance is a tie, not a disagreement
     auto cam_differs = [&](const Hit& a, const Hit& b) {
         if (a.valid() != b.valid()) return true;
-        return a.valid() && a.prim != b.prim && std::abs(a.t - b.t) > 1e-4f * a.t;
+        return a.valid() && (a.prim != b.prim || a.inst != b.inst) && std::abs(a.t - b.t) > 1e-4f * a.t;
     };
     auto occl_differs = [&](const ShadowRays& a, const ShadowRays& b, std::size_t i) {
         return a.traced[i] != b.traced[i] || (a.traced[i] && a.occluded[i] != b.occluded[i]);
@@ -599,7 +635,7 @@ void cross_check(EmbreeFrame& f, const BenchScene& bs, std::size_t goblin_first_
         c["cutout_px"] = double(cutout);
         c["alpha_filter"] = f.filtered ? 1.0 : 0.0;
     }
-    if (goblin_first_tri < bs.rs.mesh.triangles.size()) c["goblin_px"] = double(goblin);
+    if (bs.goblin_inst != kInvalidIndex) c["goblin_px"] = double(goblin);
 }
 
 /// Embree's frame for scene `name`, made once; nullptr when the data file is missing.
@@ -611,18 +647,19 @@ const EmbreeFrame* embree_frame(const std::string& name) {
     const BenchScene* bs = bench_scene(name, false);
     if (!bs) return (cache[name] = nullptr).get();
     auto f = std::make_unique<EmbreeFrame>();
+    f->bs = bs;
     f->view = bs->rs.view();
     f->cam = bs->cam;
     f->light = bs->rs.lights.front().position;
 
     const RTCDevice dev = rkbench::default_embree_device();
     rkbench::take_embree_error();
-    f->verts = rkbench::embree_vertices(bs->rs.mesh);
-    f->scene = rkbench::make_embree_scene(dev, bs->rs.mesh, f->verts, RTC_BUILD_QUALITY_MEDIUM);
+    f->verts = rkbench::embree_vertices(bs->flat);
+    f->scene = rkbench::make_embree_scene(dev, bs->flat, f->verts, RTC_BUILD_QUALITY_MEDIUM);
     if (f->view.alpha_testing && rtcGetDeviceProperty(dev, RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED)) {
         // filters change what counts as a hit, so the geometry and the scene are committed again
         const RTCGeometry g = rtcGetGeometry(f->scene, 0);
-        rtcSetGeometryUserData(g, &f->view);
+        rtcSetGeometryUserData(g, f.get());
         rtcSetGeometryIntersectFilterFunction(g, cutout_filter);
         rtcSetGeometryOccludedFilterFunction(g, cutout_filter);
         rtcCommitGeometry(g);
@@ -645,7 +682,7 @@ const EmbreeFrame* embree_frame(const std::string& name) {
             const vec2 j = sampler.sample(0, rng);
             f->camera[i] = fr.ray(x, y, j.x, j.y);
         }
-    if (f->error.empty()) cross_check(*f, *bs, bs->goblin_first_tri);
+    if (f->error.empty()) cross_check(*f, *bs);
     return (cache[name] = std::move(f)).get();
 }
 

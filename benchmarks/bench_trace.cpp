@@ -40,7 +40,7 @@ using rkbench::Scene;
 
 constexpr double kMinTime = 0.5;  // seconds per case
 
-enum class Lib { raykit, wide, wide8, wide8copy, block8, embree };
+enum class Lib { raykit, wide, wide8, block8, embree };
 
 struct Outputs {
     std::vector<float> t;
@@ -222,8 +222,6 @@ void BM_trace(benchmark::State& state, std::string scene_name, std::string set, 
         time_raykit(TreeQuery{rkbench::raykit_wide_bvh(*s), mesh});
     } else if (lib == Lib::wide8) {
         time_raykit(TreeQuery{rkbench::raykit_wide8_bvh(*s), mesh});
-    } else if (lib == Lib::wide8copy) {
-        time_raykit(TreeQuery{rkbench::raykit_wide8_bvh(*s), rkbench::raykit_wide8_leaf_triangles(*s)});
     } else if (lib == Lib::block8) {
         time_raykit(SelfQuery{rkbench::raykit_block8_bvh(*s)});
     } else {
@@ -265,7 +263,6 @@ const bool registered = [] {
                                                  (lib == Lib::raykit      ? "raykit"
                                                   : lib == Lib::wide      ? "wide"
                                                   : lib == Lib::wide8     ? "wide8"
-                                                  : lib == Lib::wide8copy ? "wide8copy"
                                                   : lib == Lib::block8    ? "block8"
                                                                           : "embree") +
                                                  "/threads:" + std::to_string(threads);

@@ -43,7 +43,6 @@
 #include "raykit.hpp"
 #include "raykit/io/obj.hpp"
 #include "raykit/scene/generate.hpp"
-#include "raykit/scene/leaf_triangles.hpp"
 
 #ifdef RAYKIT_HAVE_EMBREE
 #include <embree3/rtcore.h>
@@ -214,16 +213,6 @@ inline const raykit::WideBvh8& raykit_wide8_bvh(const Scene& s) {
     std::lock_guard lock(detail::cache_mutex());
     auto& slot = cache[s.name];
     if (!slot) slot = std::make_unique<raykit::WideBvh8>(raykit::WideBvh8::collapse(bvh));
-    return *slot;
-}
-
-/// LeafTriangles copy in raykit_wide8_bvh(s)'s leaf order, made once.
-inline const raykit::LeafTriangles& raykit_wide8_leaf_triangles(const Scene& s) {
-    const raykit::WideBvh8& wide = raykit_wide8_bvh(s);
-    static std::map<std::string, std::unique_ptr<raykit::LeafTriangles>> cache;
-    std::lock_guard lock(detail::cache_mutex());
-    auto& slot = cache[s.name];
-    if (!slot) slot = std::make_unique<raykit::LeafTriangles>(raykit::MeshView(s.mesh), wide);
     return *slot;
 }
 

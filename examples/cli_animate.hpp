@@ -22,36 +22,29 @@
 // the thesis scene's houses are ~6-10 units tall) and stood with its bind
 // pose's feet on the first surface below (X, top of scene, Z) (--place,
 // default: the scene's centre, or the origin without --scene). The placement
-// is folded into the bone matrices (world = P · M_bone), so skinning emits
-// world-space vertices and the refitted boxes are world boxes; nothing else
-// is transformed per frame. The camera (no --camera) frames the character's
-// bind-pose box from the front-right-above at ~3x its size and stays fixed;
-// the default light is default_key_light of that camera.
+// is the character instance's transform: skinning stays in model space and
+// rays are mapped into it. The camera (no --camera) frames the character's
+// placed bind-pose box from the front-right-above at ~3x its size and stays
+// fixed; the default light is default_key_light of that camera.
 //
-// Per frame (all timings wall-clock ms, printed as one table row on stdout):
-//   interpolate  sample_frame (slerp) + skin_matrices (+ the placement)
-//   skin         CPU: skin_vertices into the render mesh (positions, normals);
-//                cl:  matrices upload + the SkinHook vertex stage of a
-//                     raykit::cl::DeviceScene<SkinHook> (anim/skin_hook.hpp)
-//   refit        CPU: raykit::refit of the character's tree (or its rebuild);
-//                cl:  the device's one-pass refit of the character's tree
-//   top          the render tree: root over (static tree, character tree);
-//                the static tree's nodes are written once and never again.
-//                cl: + the device top level and the read-back of the
-//                character's skinned vertices and refitted nodes
-//   trace/shade  render_cpu (CPU renderer): its render wall time split in
-//                the ratio of its trace+shadow vs shade thread times
-//   sah          SAH(character tree) / SAH(after the last (re)build), and
-//                the RebuildPolicy decision (threshold 1.15): "refit" or
-//                "rebuild". On the CPU a rebuild is done (binned SAH from the
-//                current vertices). With --device cl the device keeps the
-//                topology it was given (DeviceScene cannot rebuild a
-//                dynamic tree), so the decision is printed as "rebuild*"
-//                (advised, not done) and the tree keeps being refitted.
-// With --device cl the static scene is a static object of the DeviceScene
-// (uploaded once, never written again); the frame is rendered by the CPU
-// renderer from the device-skinned vertices and device-refitted nodes read
-// back.
+// The frame is raykit::FrameLoop (render/frame.hpp) over a RenderScene of two
+// objects — the static OBJ (never touched again) and the dynamic character;
+// this command only parses flags, samples the animation and prints. Per frame
+// (wall-clock ms, one table row on stdout):
+//   interpolate  sample_frame (slerp) + skin_matrices
+//   skin         the vertex stage. CPU: SkinHook's CPU twin on every vertex.
+//                cl: the matrices uploaded, SkinHook run by a
+//                raykit::cl::DeviceScene<SkinHook>, the vertices read back.
+//   refit        the character's trees refitted in place (binary and 8-wide
+//                blocks), or rebuilt when the RebuildPolicy (threshold 1.15)
+//                says so
+//   top          the top-level tree over the two instances
+//   trace/shade  the render stage split by thread time (FrameLoop)
+//   sah          SAH growth of the character's refitted tree over its last
+//                build; decision "refit" or "rebuild".
+// With --device cl only the vertex stage runs on the device: the device
+// renderer still takes one mesh (issue 13's remaining step), so the frame is
+// rendered by the CPU from the read-back vertices.
 //
 // Entry point:
 //   int raykit_cli_animate(int argc, char** argv, int first_arg);
@@ -93,12 +86,13 @@
 #include "raykit/io/obj.hpp"
 #include "raykit/io/smd.hpp"
 #include "raykit/render/image.hpp"
+#include "raykit/render/frame.hpp"
 #include "raykit/render/render_cpu.hpp"
+#include "raykit/anim/skin_hook.hpp"
 #include "raykit/scene/build_options.hpp"
 #include "raykit/scene/scene.hpp"
 #include "cli_render.hpp"  // the render flags' shared limits (kMaxPixels)
 #if RAYKIT_CLI_HAVE_CL
-#include "raykit/anim/skin_hook.hpp"
 #include "raykit/cl.hpp"
 #endif
 
@@ -314,71 +308,6 @@ inline std::string animate_frame_name(const std::string& pattern, long k) {
     return pattern.substr(0, c.at) + buf + pattern.substr(c.end);
 }
 
-namespace detail_animate {
-
-/// world = P · M for a row-major 3x4 M (P affine).
-inline raykit::SkinMatrix place_matrix(const raykit::mat4& P, const raykit::SkinMatrix& M) {
-    raykit::SkinMatrix o;
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 4; ++c) {
-            float v = c == 3 ? P[3][r] : 0.0f;
-            for (int k = 0; k < 3; ++k) v += P[k][r] * M.m[4 * k + c];
-            o.m[4 * r + c] = v;
-        }
-    return o;
-}
-
-/// Render tree over the concatenated mesh [static triangles | character
-/// triangles]: root 0 with children 1 (static root) and 2 (character root);
-/// static nodes 1.. at 3.., character nodes 1.. after them. Children stay at
-/// odd indices (pairs share a cache line) since a binary tree has an odd
-/// node count.
-struct CombinedTree {
-    raykit::Bvh bvh;
-    std::size_t static_nodes = 0;      ///< nodes of the static tree
-    std::uint32_t static_tris = 0;
-    std::uint32_t static_slots = 0;    ///< prim_ids entries of the static tree
-
-    void set_static(const raykit::Bvh& s, std::uint32_t tris) {
-        static_nodes = s.nodes.size();
-        static_tris = tris;
-        static_slots = static_cast<std::uint32_t>(s.prim_ids.size());
-        bvh.nodes.assign(static_nodes == 0 ? 1 : static_nodes + 2, raykit::Node{});
-        bvh.prim_ids.assign(s.prim_ids.begin(), s.prim_ids.end());
-        for (std::size_t j = 0; j < static_nodes; ++j) {
-            raykit::Node n = s.nodes[j];
-            if (!n.is_leaf()) n.index += 2;
-            bvh.nodes[j == 0 ? 1 : j + 2] = n;
-        }
-    }
-    /// Writes the character's tree (nodes always; prim_ids when `topology`).
-    void set_character(std::span<const raykit::Node> c, std::span<const std::uint32_t> prims, bool topology) {
-        if (static_nodes == 0) {  // no static scene: the character's tree is the render tree
-            bvh.nodes.assign(c.begin(), c.end());
-            if (topology) bvh.prim_ids.assign(prims.begin(), prims.end());
-            return;
-        }
-        const std::size_t base = static_nodes + 2;
-        if (topology) {
-            bvh.nodes.resize(base + (c.empty() ? 0 : c.size() - 1));
-            bvh.prim_ids.resize(static_slots);
-            for (std::uint32_t p : prims) bvh.prim_ids.push_back(p + static_tris);
-        }
-        const std::uint32_t shift = static_cast<std::uint32_t>(static_nodes) + 1;
-        for (std::size_t j = 0; j < c.size(); ++j) {
-            raykit::Node n = c[j];
-            n.index += n.is_leaf() ? static_slots : shift;
-            bvh.nodes[j == 0 ? 2 : j + static_nodes + 1] = n;
-        }
-        raykit::Node& root = bvh.nodes[0];
-        root.box = bvh.nodes[1].box;
-        root.box.grow(bvh.nodes[2].box);
-        root.index = 1;
-        root.count = 0;
-    }
-};
-
-}  // namespace detail_animate
 }  // namespace raykit_cli
 
 inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
@@ -397,17 +326,23 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
     const Mesh& cm = model.mesh;
     const std::size_t nv = cm.positions.size();
 
-    // Static scene: one object of a two-object raykit::Scene (its BVH is the render tree's left half).
-    Scene scene;
+    // The scene: the static OBJ as a static object, the character as a dynamic object placed by
+    // its instance's transform P (skinning stays in model space; rays are mapped per instance).
+    RenderScene rs;
     Mesh static_mesh;
     if (!a.scene.empty()) {
         static_mesh = load_obj(a.scene);
         for (const std::string& w : static_mesh.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
     }
-    const std::uint32_t stat = static_mesh.triangles.empty() ? kInvalidIndex : scene.add_object(static_mesh);
-    const std::uint32_t body = scene.add_object(cm, ObjectKind::dynamic);
-    if (stat != kInvalidIndex) scene.add_instance(stat);
-    scene.add_instance(body);
+    const auto static_tris = static_cast<std::uint32_t>(static_mesh.triangles.size());
+    AABB static_box;
+    for (const vec3& p : static_mesh.positions) static_box.grow(p);
+    const BuildOptions build = render_build_options(a.threads);
+    const std::uint32_t stat =
+        static_mesh.triangles.empty() ? kInvalidIndex : rs.add_object(std::move(static_mesh), ObjectKind::static_object, build);
+    const std::uint32_t body = rs.add_object(cm, ObjectKind::dynamic, build);
+    for (const MaterialTable& mt : rs.materials)
+        for (const std::string& w : mt.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
 
     // Placement P: Z-up -> Y-up, yaw, scale to char_height, feet on the ground at (X, Z).
     AABB rest_box;
@@ -415,8 +350,6 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
     const float model_height = rest_box.max.z - rest_box.min.z;
     if (!(model_height > 0.0f)) throw std::runtime_error(a.reference + ": the model has no height");
     const float s = a.char_height / model_height;
-    AABB static_box;
-    for (const vec3& p : static_mesh.positions) static_box.grow(p);
     float px = 0.0f, pz = 0.0f, ground = 0.0f;
     if (a.place) {
         px = a.place->first;
@@ -429,46 +362,17 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
         Ray down;
         down.org = vec3(px, static_box.max.y + 1.0f, pz);
         down.dir = vec3(0.0f, -1.0f, 0.0f);
-        const Hit h = intersect_closest(scene.objects()[stat].mesh, scene.objects()[stat].bvh, down);
+        const SceneObject& so = rs.scene.objects()[stat];
+        const Hit h = intersect_closest(so.blocks, down);
         ground = h.valid() ? down.org.y - h.t : static_box.min.y;
     }
     mat4 P = glm::translate(mat4(1.0f), vec3(px, ground - rest_box.min.z * s, pz));
     P = glm::rotate(P, glm::radians(a.yaw), vec3(0.0f, 1.0f, 0.0f));
     P = glm::scale(P, vec3(s));
     P = glm::rotate(P, glm::radians(-90.0f), vec3(1.0f, 0.0f, 0.0f));  // SMD z-up -> y-up
-
-    // Render mesh: static triangles first, then the character's (world-space vertices rewritten per frame).
-    Mesh rm = static_mesh;
-    const std::size_t v0 = rm.positions.size();
-    const auto t0 = static_cast<std::uint32_t>(rm.triangles.size());
-    const auto m0 = static_cast<std::uint32_t>(rm.materials.size());
-    const bool had_normals = !rm.normals.empty() || v0 == 0;
-    if (!had_normals) rm.normals.assign(v0, vec3(0.0f));
-    // Texture coordinates: kept when either part has them (the other part gets zeros). Testing
-    // rm.texcoords after padding it would drop the character's when there is no static scene (v0 = 0).
-    const bool with_uv = !rm.texcoords.empty() || !cm.texcoords.empty();
-    rm.positions.resize(v0 + nv);
-    rm.normals.resize(v0 + nv, vec3(0.0f));
-    if (with_uv) {
-        rm.texcoords.resize(v0, vec2(0.0f));
-        for (std::size_t i = 0; i < nv; ++i) rm.texcoords.push_back(cm.texcoords.empty() ? vec2(0.0f) : cm.texcoords[i]);
-    }
-    for (const Triangle& t : cm.triangles) {
-        Triangle u = t;
-        for (auto& v : u.v) v += static_cast<std::uint32_t>(v0);
-        rm.triangles.push_back(u);
-    }
-    rm.material_ids.resize(t0, kNoMaterial);
-    for (std::size_t t = 0; t < cm.triangles.size(); ++t) {
-        const std::uint32_t id = t < cm.material_ids.size() ? cm.material_ids[t] : kNoMaterial;
-        rm.material_ids.push_back(id == kNoMaterial ? kNoMaterial : id + m0);
-    }
-    rm.materials.insert(rm.materials.end(), cm.materials.begin(), cm.materials.end());
-    const MaterialTable materials = make_material_table(rm, nullptr, a.threads);
-    for (const std::string& w : materials.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
-
-    raykit_cli::detail_animate::CombinedTree tree;
-    if (stat != kInvalidIndex) tree.set_static(scene.objects()[stat].bvh, t0);
+    if (stat != kInvalidIndex) rs.scene.add_instance(stat);
+    rs.scene.add_instance(body, P);
+    rs.scene.update_top_level();
 
     const double fps = a.fps > 0.0 ? a.fps : double(anim.fps > 0.0f ? anim.fps : 30.0f);
     const long frames = a.frames >= 0 ? a.frames : long(anim.frame_count());
@@ -478,10 +382,7 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
     auto matrices_at = [&](long k, double* anim_frame) {
         const double f = double(a.first + k) * double(anim.fps > 0.0f ? anim.fps : 30.0f) / fps;
         *anim_frame = f;
-        const std::vector<BoneTransform> local = sample_frame(anim, f, Interpolation::slerp, WrapMode::loop);
-        std::vector<SkinMatrix> m = skin_matrices(skeleton, local);
-        for (SkinMatrix& x : m) x = raykit_cli::detail_animate::place_matrix(P, x);
-        return m;
+        return skin_matrices(skeleton, sample_frame(anim, f, Interpolation::slerp, WrapMode::loop));
     };
 
     // Camera: frames the placed bind pose (~3x its size), fixed for all frames.
@@ -493,7 +394,7 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
         cam.position = a.camera->first;
         cam.target = a.camera->second;
     } else {
-        AABB cb;
+        AABB cb;  // the placed vertices' box (an instance's world box bounds its turned box: larger)
         for (const vec3& p : cm.positions) cb.grow(vec3(P * glm::vec4(p, 1.0f)));
         const vec3 c = 0.5f * (cb.min + cb.max), h = 1.5f * (cb.max - cb.min);
         AABB wide;
@@ -501,111 +402,57 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
         wide.grow(c + h);
         cam = frame_scene(wide, a.width, a.height, a.fov, vec3(0.8f, 0.35f, 1.0f));
     }
-    std::vector<Light> lights = a.lights;
-    if (lights.empty()) lights.push_back(default_key_light(cam));
+    rs.lights = a.lights;
+    if (rs.lights.empty()) rs.lights.push_back(default_key_light(cam));
     RenderSettings set;
     set.spp = a.spp;
     set.threads = a.threads;
     set.shade.max_depth = a.max_depth;
-    set.time_stages = true;
+    FrameLoop loop(rs, set);
 
 #if RAYKIT_CLI_HAVE_CL
     std::optional<raykit::cl::DeviceScene<SkinHook>> ds;
     if (a.device_cl) {
-        ds.emplace(raykit::cl::Device::shared(), scene);
-        upload_skin(*ds, scene, body, skin);
+        ds.emplace(raykit::cl::Device::shared(), rs.scene);
+        upload_skin(*ds, rs.scene, body, skin);
     }
 #endif
     const bool on_device = a.device_cl;
-    RebuildPolicy policy;
-    Bvh char_bvh;  // CPU path: the character's tree over its world-space vertices
     std::printf("device: %s   static triangles: %u   character: %zu vertices, %zu triangles, %zu bones\n",
-                on_device ? "cl (skin + refit on the device, render on the CPU)" : "cpu", t0, nv,
-                cm.triangles.size(), model.bones.size());
+                on_device ? "cl (skinning on the device, read back; refit and render on the CPU)" : "cpu", static_tris,
+                nv, cm.triangles.size(), model.bones.size());
     std::printf("%6s %8s %8s %8s %8s %8s %8s %8s %7s  %s\n", "frame", "anim_f", "interp", "skin", "refit", "top",
                 "trace", "shade", "sah", "decision");
     double sum[6] = {0, 0, 0, 0, 0, 0};
-    std::vector<AABB> boxes(cm.triangles.size());
     for (long k = 0; k < frames; ++k) {
         double af = 0.0;
-        auto t = clock::now();
+        const auto t = clock::now();
         const std::vector<SkinMatrix> mats = matrices_at(k, &af);
         const double interp_ms = ms(t);
-        double skin_ms = 0.0, refit_ms = 0.0, top_ms = 0.0, growth = 1.0;
-        const char* decision = "refit";
-        const std::span<vec3> wpos(rm.positions.data() + v0, nv), wnor(rm.normals.data() + v0, nv);
         if (!on_device) {
-            t = clock::now();
-            skin_vertices(skin, mats, cm.positions, cm.normals, wpos,
-                          cm.normals.empty() ? std::span<vec3>() : wnor, a.threads);
-            skin_ms = ms(t);
-            t = clock::now();
-            auto tri_box = [&](std::uint32_t i) {
-                AABB b;
-                for (int c = 0; c < 3; ++c) b.grow(wpos[cm.triangles[i].v[c]]);
-                return b;
-            };
-            bool topology = false;
-            if (char_bvh.nodes.empty()) {
-                char_bvh = build_bvh(MeshView(std::span<const vec3>(wpos), cm.triangles), BuildOptions{});
-                policy.reset(sah_cost(char_bvh));
-                decision = "build";
-                topology = true;
-            } else {
-                refit(char_bvh, tri_box);
-                growth = policy.growth(sah_cost(char_bvh));
-                if (policy.should_rebuild(sah_cost(char_bvh))) {
-                    char_bvh = build_bvh(MeshView(std::span<const vec3>(wpos), cm.triangles), BuildOptions{});
-                    policy.reset(sah_cost(char_bvh));
-                    decision = "rebuild";
-                    topology = true;
-                }
-            }
-            refit_ms = ms(t);
-            t = clock::now();
-            tree.set_character(char_bvh.nodes, char_bvh.prim_ids, topology);
-            top_ms = ms(t);
+            const SkinHook::Host host{skin.offsets, skin.links, mats};
+            loop.update(vertex_hook(
+                [&](std::uint32_t, const Vertex& v, std::uint32_t i) { return SkinHook::apply(v, i, {}, host); },
+                a.threads));
         }
 #if RAYKIT_CLI_HAVE_CL
         else {
-            t = clock::now();
-            upload_skin_matrices(*ds, std::span<const SkinMatrix>(mats));
-            const raykit::cl::FrameTimes ft = ds->update();
-            skin_ms = ms(t) - ft.refit_ms - ft.top_level_ms;
-            refit_ms = ft.refit_ms;
-            t = clock::now();
-            const std::vector<Vertex> moved = ds->moved_vertices(body);
-            for (std::size_t i = 0; i < nv; ++i) {
-                wpos[i] = moved[i].position;
-                wnor[i] = moved[i].normal;
-            }
-            const std::vector<Node> nodes = ds->nodes(body);
-            Bvh& cb = char_bvh;
-            const bool topology = cb.nodes.empty();
-            cb.nodes.assign(nodes.begin(), nodes.end());
-            if (topology) {
-                cb.prim_ids = scene.objects()[body].bvh.prim_ids;
-                policy.reset(sah_cost(cb));
-                decision = "build";
-            } else {
-                growth = policy.growth(sah_cost(cb));
-                if (policy.should_rebuild(sah_cost(cb))) decision = "rebuild*";
-            }
-            tree.set_character(cb.nodes, cb.prim_ids, topology);
-            top_ms = ft.top_level_ms + ms(t);
+            loop.update([&](Scene& sc, std::uint32_t object) {
+                upload_skin_matrices(*ds, std::span<const SkinMatrix>(mats));
+                (void)ds->update();
+                const std::vector<Vertex> moved = ds->moved_vertices(object);
+                sc.write_vertices(object, [&](const Vertex&, std::uint32_t i) { return moved[i]; }, a.threads);
+            });
         }
 #endif
-        const ShadeScene view = make_shade_scene(rm, tree.bvh, materials, lights);
-        RenderStats st;
-        const Image img = render_cpu(view, cam, set, &st);
-        const double thread_all = st.trace_thread_ms + st.shadow_thread_ms + st.shade_thread_ms;
-        const double trace_share = thread_all > 0.0 ? (st.trace_thread_ms + st.shadow_thread_ms) / thread_all : 1.0;
-        const double trace_ms = st.render_ms * trace_share, shade_ms = st.render_ms - trace_ms;
+        const Image img = loop.render(cam);
+        const FrameStats& st = loop.last();
         write_png(img, raykit_cli::animate_frame_name(a.output, a.first + k));
-        std::printf("%6ld %8.2f %8.3f %8.3f %8.3f %8.3f %8.2f %8.2f %7.3f  %s\n", a.first + k, af, interp_ms, skin_ms,
-                    refit_ms, top_ms, trace_ms, shade_ms, growth, decision);
+        std::printf("%6ld %8.2f %8.3f %8.3f %8.3f %8.3f %8.2f %8.2f %7.3f  %s\n", a.first + k, af, interp_ms,
+                    st.ms.vertex, st.ms.refit, st.ms.top, st.ms.trace, st.ms.shade, st.worst_growth,
+                    st.rebuilt ? "rebuild" : "refit");
         std::fflush(stdout);
-        const double row[6] = {interp_ms, skin_ms, refit_ms, top_ms, trace_ms, shade_ms};
+        const double row[6] = {interp_ms, st.ms.vertex, st.ms.refit, st.ms.top, st.ms.trace, st.ms.shade};
         for (int i = 0; i < 6; ++i) sum[i] += row[i];
     }
     if (frames > 0) {

@@ -89,8 +89,7 @@ inline const char* raykit_cli_render_usage() {
   --threads T               worker threads, 0..1024, 0 = all (default 0)
   --device cpu|cl           renderer (default cpu; cl: the OpenCL device, same image as the CPU)
   --builder NAME            BVH builder: sah (default), pairwise, sortaxis, ploc
-  --leaf-size N             largest BVH leaf, >= 1 (default 8)
-  --no-leaf-triangles       trace through the index triangles instead of the leaf-order copy
+  --leaf-size N             largest BVH leaf, >= 1 (default 12; leaf cost in blocks of 4)
   --pfm OUT.pfm             also write linear float RGB (PFM)
   --alpha                   write coverage as PNG alpha
   --profile                 split the render time into trace / shadow / shade thread time
@@ -125,7 +124,7 @@ inline int arity(std::string_view k) {
         {"--camera", 6},  {"--up", 3},         {"--fov", 1},        {"--light", 6},     {"--sun", 6},
         {"--ambient", 3}, {"--background", 3}, {"--no-shadows", 0}, {"--filter", 1},    {"--ao-samples", 1},
         {"--ao-radius", 1}, {"--seed", 1},     {"--no-jitter", 0},  {"--threads", 1},   {"--device", 1},
-        {"--builder", 1}, {"--leaf-size", 1},  {"--no-leaf-triangles", 0}, {"--pfm", 1}, {"--alpha", 0},
+        {"--builder", 1}, {"--leaf-size", 1}, {"--pfm", 1}, {"--alpha", 0},
         {"--profile", 0}, {"--quiet", 0}};
     for (auto& [name, n] : table)
         if (name == k) return n;
@@ -390,13 +389,13 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
         }
     }
 
-    BuildOptions build;
+    BuildOptions build = render_build_options();
     try {
         if (auto* v = p.last("--builder")) build.builder = BuildOptions::parse_builder((*v)[0]);
     } catch (const std::invalid_argument& e) {
         throw RaykitCliRenderUsageError(e.what());
     }
-    build.max_leaf_size = cr::count_or<unsigned>(p, "--leaf-size", 8, 1, std::numeric_limits<unsigned>::max());
+    build.max_leaf_size = cr::count_or<unsigned>(p, "--leaf-size", 12, 1, std::numeric_limits<unsigned>::max());
     build.threads = set.threads;
 
     // ---- every output writable, the scene a file, before any work
@@ -409,8 +408,8 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
     Mesh mesh = load_obj(p.pos[0]);
     const double load_ms = ms_since(t0);
     for (const std::string& w : mesh.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
-    RenderScene rs = prepare_render_scene(std::move(mesh), build, !p.has("--no-leaf-triangles"));
-    for (const std::string& w : rs.materials.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
+    RenderScene rs = prepare_render_scene(std::move(mesh), build);
+    for (const std::string& w : rs.materials[0].warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
 
     // ---- camera and lights
     Camera cam;

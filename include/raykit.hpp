@@ -6,7 +6,8 @@
 //   bvh/             node layout, builders, SAH cost, validate, traverse, refit
 //   scene/           mesh, building a BVH over a mesh, closest/any-hit queries
 //   io/              OBJ/MTL and SMD loading, ParseError
-//   anim/            skeletons, keyframe interpolation, skinning
+//   anim/            skeletons, keyframe interpolation, skinning, the skinning vertex hook
+//   render/          materials, textures, images, shaders, the CPU renderer, the frame loop
 // The OpenCL device path is separate: include raykit/cl.hpp.
 #pragma once
 
@@ -37,7 +38,6 @@
 #include "raykit/scene/mesh.hpp"
 #include "raykit/scene/build.hpp"
 #include "raykit/scene/trace.hpp"
-#include "raykit/scene/leaf_triangles.hpp"
 #include "raykit/scene/block_bvh.hpp"
 #include "raykit/scene/camera.hpp"
 #include "raykit/scene/scene.hpp"
@@ -48,3 +48,10 @@
 #include "raykit/anim/skeleton.hpp"
 #include "raykit/anim/interpolate.hpp"
 #include "raykit/anim/skinning.hpp"
+#include "raykit/anim/skin_hook.hpp"
+#include "raykit/render/image.hpp"
+#include "raykit/render/texture.hpp"
+#include "raykit/render/material.hpp"
+#include "raykit/render/shade.hpp"
+#include "raykit/render/render_cpu.hpp"
+#include "raykit/render/frame.hpp"

@@ -17,7 +17,6 @@
 #include "raykit/math/limits.hpp"
 #include "raykit/scene/build_options.hpp"
 #include "raykit/scene/generate.hpp"
-#include "raykit/scene/leaf_triangles.hpp"
 
 using namespace raykit;
 
@@ -319,38 +318,155 @@ TEST(Bvh, BinnedSahCostIsNearASweepSahReference) {
     EXPECT_LT(c32, c256 * 1.02);
 }
 
-TEST(Bvh, LeafTriangleCopyGivesIdenticalAnswers) {
+namespace {
+
+/// Node and block equality by value (float ==, so ±0 planes compare equal: min/max of the same
+/// floats may keep either zero depending on merge order), printing the first difference.
+template <int W>
+::testing::AssertionResult same_blocks(const BlockBvhT<W>& a, const BlockBvhT<W>& b, bool planes = true) {
+    if (a.tree.nodes.size() != b.tree.nodes.size() || a.blocks.size() != b.blocks.size())
+        return ::testing::AssertionFailure() << "sizes differ: " << a.tree.nodes.size() << "/" << a.blocks.size()
+                                             << " vs " << b.tree.nodes.size() << "/" << b.blocks.size();
+    for (std::size_t i = 0; i < a.tree.nodes.size(); ++i) {
+        const auto &x = a.tree.nodes[i], &y = b.tree.nodes[i];
+        if constexpr (W == 2) {
+            if (!(x.box.min == y.box.min && x.box.max == y.box.max) || x.index != y.index || x.count != y.count)
+                return ::testing::AssertionFailure() << "binary node " << i << " differs";
+        } else {
+            for (int c = 0; c < W; ++c) {
+                if (x.index[c] != y.index[c] || x.count[c] != y.count[c])
+                    return ::testing::AssertionFailure() << "node " << i << " slot " << c << " differs";
+                for (int r = 0; r < 6 && planes; ++r)
+                    if (!(x.planes[r][c] == y.planes[r][c]))
+                        return ::testing::AssertionFailure() << "node " << i << " slot " << c << " plane " << r
+                                                             << ": " << x.planes[r][c] << " vs " << y.planes[r][c];
+            }
+        }
+    }
+    for (std::size_t k = 0; k < a.blocks.size(); ++k)
+        for (int l = 0; l < 4; ++l) {
+            if (a.blocks[k].prim[l] != b.blocks[k].prim[l])
+                return ::testing::AssertionFailure() << "block " << k << " lane " << l << " prim differs";
+            for (int r = 0; r < 9; ++r)
+                if (!(a.blocks[k].p[r][l] == b.blocks[k].p[r][l]))
+                    return ::testing::AssertionFailure() << "block " << k << " lane " << l << " plane " << r;
+        }
+    return ::testing::AssertionSuccess();
+}
+
+/// Every wide slot's box is exactly the union of the bounds of the mesh triangles below it
+/// (recomputed from scratch), and the root bounds the union of the root's slots.
+template <int W>
+::testing::AssertionResult tight_boxes(const BlockBvhT<W>& b, const MeshView& m) {
+    const auto below = [&](auto&& self, std::uint32_t node, int c) -> AABB {
+        const auto& n = b.tree.nodes[node];
+        AABB box;
+        if (n.count[c] != 0) {
+            for (std::uint32_t k = n.index[c]; k < n.index[c] + n.count[c]; ++k)
+                for (int l = 0; l < 4; ++l) box.grow(m.bounds(b.blocks[k].prim[l]));
+        } else {
+            for (int k = 0; k < W; ++k)
+                if (!b.tree.nodes[n.index[c]].unused(k)) box.grow(self(self, n.index[c], k));
+        }
+        return box;
+    };
+    AABB root;
+    for (std::uint32_t i = 0; i < b.tree.nodes.size(); ++i)
+        for (int c = 0; c < W; ++c) {
+            if (b.tree.nodes[i].unused(c)) continue;
+            const AABB want = below(below, i, c), got = b.tree.nodes[i].box(c);
+            if (!(want.min == got.min && want.max == got.max))
+                return ::testing::AssertionFailure() << "node " << i << " slot " << c << " is not the tight box";
+            if (i == 0) root.grow(want);
+        }
+    if (!(root.min == b.tree.bounds.min && root.max == b.tree.bounds.max))
+        return ::testing::AssertionFailure() << "root bounds are not the union of the root's slots";
+    return ::testing::AssertionSuccess();
+}
+
+}  // namespace
+
+TEST(Bvh, EveryTreeShapeRefitsInPlaceToTheRemake) {
+    // A wave moves the vertices of a torus 10^4 out. Refitting each member of the family in
+    // place (binary, 4- and 8-wide indexed trees; blocks under 2-, 4- and 8-wide nodes) must give
+    // the blocks made again from the moved mesh over the same topology, with every box the tight
+    // union of what lies below it (for binary nodes: exactly the refitted binary tree's), and
+    // queries must equal brute force. (Collapsing the refitted binary tree again may choose a
+    // different wide topology: it opens the children of largest area.)
     Mesh m = make_bumpy_torus(30000);
     transform_positions(m, 3.0f, vec3(1e4f, 0.0f, 0.0f));
-    const Bvh bvh = build(m);
-    LeafTriangles lt(m, bvh);
-    EXPECT_EQ(lt.memory_bytes(), m.triangle_count() * 36);
-    const WideBvh wide = WideBvh::collapse(bvh);
-    std::size_t bad = 0;
-    for (const Ray& r : random_rays(m, 4000, 21)) {
-        const Hit a = intersect_closest(m, bvh, r), b = intersect_closest(lt, bvh, r);
-        const Hit w = intersect_closest(lt, wide, r);
-        bad += a.prim != b.prim || a.t != b.t || a.u != b.u || a.v != b.v;
-        bad += a.prim != w.prim || a.t != w.t || a.u != w.u || a.v != w.v;
-        bad += intersect_any(m, bvh, r) != intersect_any(lt, bvh, r);
-        bad += intersect_any(m, bvh, r) != intersect_any(lt, wide, r);
-    }
-    EXPECT_EQ(bad, 0u);
-    // after moving vertices: refit + update keeps them equal to brute force
-    for (vec3& p : m.positions) p.z += 0.1f * std::sin(p.x);
+    const Bvh bvh = build_bvh<BinnedSahBuilder>(m, BlockBvh8::sah_config());
+    WideBvh wide4 = WideBvh::collapse(bvh);
+    WideBvh8 wide8 = WideBvh8::collapse(bvh);
+    BlockBvh2 b2 = BlockBvh2::make(m, bvh);
+    BlockBvh b4 = BlockBvh::make(m, bvh);
+    BlockBvh8 b8 = BlockBvh8::make(m, bvh);
+    for (vec3& p : m.positions) p.z += 0.1f * std::sin(p.x) + 0.5f * std::cos(0.01f * p.y);
     const MeshView view(m);
+    const auto box = [&](std::uint32_t i) { return view.bounds(i); };
     Bvh moved = bvh;
-    refit(moved, [&](std::uint32_t i) { return view.bounds(i); });
-    lt.update(m, moved);
-    const WideBvh wide_moved = WideBvh::collapse(moved);  // collapse again after a refit
-    for (const Ray& r : random_rays(m, 1000, 22)) {
-        const Hit a = intersect_closest(lt, moved, r), o = brute_force_closest(m, r);
-        const Hit w = intersect_closest(lt, wide_moved, r);
-        EXPECT_EQ(a.prim, o.prim);
-        EXPECT_EQ(a.t, o.t);
-        EXPECT_EQ(w.prim, o.prim);
-        EXPECT_EQ(w.t, o.t);
+    refit(moved, box);
+    refit(wide4, box);
+    refit(wide8, box);
+    b2.refit(view);
+    b4.refit(view);
+    b8.refit(view);
+    EXPECT_TRUE(same_blocks(b2, BlockBvh2::make(m, moved)));
+    EXPECT_TRUE(same_blocks(b4, BlockBvh::make(m, WideBvh::collapse(bvh)), false));
+    EXPECT_TRUE(same_blocks(b8, BlockBvh8::make(m, WideBvh8::collapse(bvh)), false));
+    EXPECT_TRUE(tight_boxes(b4, view));
+    EXPECT_TRUE(tight_boxes(b8, view));
+    EXPECT_EQ(wide8.validate(primitive_refs(m).boxes), "");
+    EXPECT_EQ(wide4.validate(primitive_refs(m).boxes), "");
+    EXPECT_EQ(wide8.bounds.min, moved.nodes[0].box.min);
+    EXPECT_EQ(wide8.bounds.max, moved.nodes[0].box.max);
+    EXPECT_EQ(b8.tree.bounds.min, moved.nodes[0].box.min);
+    EXPECT_EQ(b8.tree.bounds.max, moved.nodes[0].box.max);
+    std::size_t bad = 0, hits = 0;
+    for (const Ray& r : random_rays(m, 2000, 22)) {
+        const Hit o = brute_force_closest(m, r);
+        hits += o.valid();
+        for (const Hit h : {intersect_closest(m, moved, r), intersect_closest(m, wide4, r),
+                            intersect_closest(m, wide8, r), intersect_closest(b2, r), intersect_closest(b4, r),
+                            intersect_closest(b8, r)})
+            bad += h.prim != o.prim || h.t != o.t || h.u != o.u || h.v != o.v;
+        const bool any = brute_force_any(m, r);
+        bad += intersect_any(m, wide8, r) != any;
+        bad += intersect_any(b8, r) != any;
     }
+    std::printf("[ info ] after the move: %zu of 2000 rays hit; %zu disagreements with brute force\n", hits, bad);
+    EXPECT_GT(hits, 200u);
+    EXPECT_EQ(bad, 0u);
+}
+
+TEST(Bvh, LeafFiltersSkipRejectedTrianglesInEveryStore) {
+    // Rejecting every odd triangle must equal brute force over the even triangles alone,
+    // through the indexed and the block store, closest and any hit.
+    const Mesh m = make_bumpy_torus(20000);
+    Mesh even = m;
+    even.triangles.clear();
+    std::vector<std::uint32_t> orig;
+    for (std::uint32_t t = 0; t < m.triangles.size(); t += 2) {
+        even.triangles.push_back(m.triangles[t]);
+        orig.push_back(t);
+    }
+    const Bvh bvh = build_bvh<BinnedSahBuilder>(m, BlockBvh8::sah_config());
+    const BlockBvh8 b8 = BlockBvh8::make(m, bvh);
+    const auto keep = [](std::uint32_t p, float, float) { return p % 2 == 0; };
+    std::size_t bad = 0, hits = 0;
+    for (const Ray& r : random_rays(m, 3000, 5)) {
+        const Hit o = brute_force_closest(even, r);
+        const std::uint32_t want = o.valid() ? orig[o.prim] : kInvalidIndex;
+        hits += o.valid();
+        const Hit a = intersect_closest(m, bvh, r, nullptr, keep), b = intersect_closest(b8, r, nullptr, keep);
+        bad += a.prim != want || b.prim != want || (o.valid() && (a.t != o.t || b.t != o.t));
+        const bool any = brute_force_any(even, r);
+        bad += intersect_any(m, bvh, r, nullptr, keep) != any;
+        bad += intersect_any(b8, r, nullptr, keep) != any;
+    }
+    std::printf("[ info ] filtered: %zu of 3000 rays hit an even triangle; %zu disagreements\n", hits, bad);
+    EXPECT_GT(hits, 300u);
+    EXPECT_EQ(bad, 0u);
 }
 
 TEST(Bvh, RebuildPolicyFiresWhenNeighbourhoodsBreakNotBefore) {

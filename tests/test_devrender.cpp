@@ -145,8 +145,8 @@ struct TestScene {
             for (int c = 0; c < 3; ++c) b.m.normals[t.v[c]] += n;
         }
         rs = prepare_render_scene(std::move(b.m));
-        rs.materials.materials[floor].map_kd = &tex;
-        rs.materials.materials[floor].update_derived();
+        rs.materials[0].materials[floor].map_kd = &tex;
+        rs.materials[0].materials[floor].update_derived();
         rs.lights.push_back(Light::point({2.0f, 4.0f, 3.0f}, vec3(0.8f, 0.8f, 0.7f)));
         rs.lights.push_back(Light::directional({-0.3f, -1.0f, -0.4f}, vec3(0.3f, 0.3f, 0.4f)));
         cam.position = {0.5f, 2.5f, 6.0f};
@@ -180,13 +180,21 @@ Diff compare(const Image& a, const Image& b) {
     return d;
 }
 
+/// The CPU twin of the device renderer: the same scene walking the binary tree the device
+/// walks (the same hits as the blocks; the same node counts for debug-cost).
+ShadeScene twin_view(const RenderScene& rs) {
+    ShadeScene v = rs.view();
+    v.trees = SceneTrees::binary;
+    return v;
+}
+
 Image cpu_render(const RenderScene& rs, const Camera& cam, const ShadeSettings& s, RenderStats* st = nullptr) {
     RenderSettings set;
     set.spp = 1;
     set.jitter = false;
     set.threads = 2;
     set.shade = s;
-    return render_cpu(rs.view(), cam, set, st);
+    return render_cpu(twin_view(rs), cam, set, st);
 }
 
 /// Distinct RGB colours of an image (up to `enough`): a test image must not be all one colour.
@@ -225,7 +233,7 @@ void expect_every_shader_matches(rcl::Device& dev, const RenderScene& rs, const 
                 const std::string label = what + " " + shader_name(k) + " spp " + std::to_string(spp) +
                                           (jitter ? " jittered" : " centred");
                 RenderStats cs;
-                const Image cpu = render_cpu(rs.view(), cam, set, &cs);
+                const Image cpu = render_cpu(twin_view(rs), cam, set, &cs);
                 rcl::DeviceRenderStats ds;
                 const Image gpu = r.render(cam, set, &ds);
                 const Diff d = compare(cpu, gpu);
@@ -582,8 +590,8 @@ TEST(DeviceRender, AlphaCutoutsMatchTheCpuRenderer) {
         }
     const Texture cut = make_texture(8, 8, std::move(px), true);
     ASSERT_TRUE(cut.has_cutout);
-    rs.materials.materials[leaf].map_kd = &cut;
-    rs.materials.materials[leaf].update_derived();
+    rs.materials[0].materials[leaf].map_kd = &cut;
+    rs.materials[0].materials[leaf].update_derived();
     ASSERT_TRUE(rs.view().alpha_testing);
     rs.lights.push_back(Light::point({0.5f, 5.0f, -2.0f}));
     Camera cam;
@@ -604,7 +612,7 @@ TEST(DeviceRender, AlphaCutoutsMatchTheCpuRenderer) {
     ShadeSettings s;
     s.max_depth = 1;
     const Image with = r.render(cam, s);
-    rs.materials.materials[leaf].alpha_tested = false;
+    rs.materials[0].materials[leaf].alpha_tested = false;
     rcl::DeviceRenderer solid(dev, rs.view());
     EXPECT_LT(compare(with, solid.render(cam, s)).fraction_ok(), 0.9);
 }

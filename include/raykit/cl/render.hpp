@@ -306,10 +306,18 @@ public:
     /// Uploads everything `scene` (from make_shade_scene / RenderScene::view) holds; the scene
     /// need not outlive the renderer. Throws std::length_error for meshes beyond 32-bit indices.
     DeviceRenderer(Device& dev, const ShadeScene& scene) : dev_(&dev) {
-        if (!scene.mesh || !scene.bvh || !scene.materials)
+        if (!scene.scene)
             throw std::invalid_argument("raykit::cl::DeviceRenderer: incomplete ShadeScene (use make_shade_scene)");
-        const Mesh& m = *scene.mesh;
-        const Bvh& bvh = *scene.bvh;
+        // the device walk is still one mesh and its binary tree: a scene of one object, placed once
+        // at the identity (what prepare_render_scene makes)
+        const Scene& sc = *scene.scene;
+        if (sc.objects().size() != 1 || sc.instances().size() != 1 || !sc.instances()[0].identity)
+            throw std::invalid_argument(
+                "raykit::cl::DeviceRenderer: renders a scene of one object at the identity (one instance); "
+                "this scene has " + std::to_string(sc.objects().size()) + " objects and " +
+                std::to_string(sc.instances().size()) + " instances");
+        const Mesh& m = sc.objects()[0].mesh;
+        const Bvh& bvh = sc.objects()[0].bvh;
         if (m.positions.size() >= 0x55555555u || bvh.nodes.size() >= 0xFFFFFFFFu || m.triangles.size() >= 0xFFFFFFFFu)
             throw std::length_error("raykit::cl::DeviceRenderer: mesh too large for 32-bit indices");
         bounds_ = scene.bounds;
@@ -328,7 +336,7 @@ public:
         material_id_count_ = static_cast<std::uint32_t>(std::min<std::size_t>(m.material_ids.size(), m.triangles.size()));
 
         // textures: one byte buffer, a table of (offset, size, srgb)
-        const MaterialTable& mt = *scene.materials;
+        const MaterialTable& mt = scene.materials[0];
         std::map<const Texture*, std::int32_t> tex_index;
         std::vector<TextureRecord> tex_records;
         std::vector<std::uint8_t> texels;

@@ -2,14 +2,16 @@
 //
 // Interface
 // ---------
-//   RenderScene rs = prepare_render_scene(load_obj("scene.obj"));   // owns mesh, BVH, materials
+//   RenderScene rs = prepare_render_scene(load_obj("scene.obj"));   // owns a Scene, materials, lights
 //   rs.lights.push_back(default_key_light(rs.bounds(), cam));
 //   Camera cam = frame_scene(rs.bounds(), 640, 480);                 // whole scene in view
 //   RenderSettings set;  set.spp = 4;  set.shade.max_depth = 2;  set.threads = 2;
 //   RenderStats stats;
 //   Image img = render_cpu(rs.view(), cam, set, &stats);
 //
-//   Or with parts owned elsewhere: render_cpu(make_shade_scene(mesh, bvh, materials, lights), cam, set).
+//   Or with parts owned elsewhere: render_cpu(make_shade_scene(scene, materials, lights), cam, set),
+//   any raykit::Scene (static and dynamic objects, instances, the top-level tree) with one
+//   MaterialTable per object; FrameLoop (render/frame.hpp) moves, refits and renders per frame.
 //
 // Sampling: `spp` samples per pixel, stratified: a jittered m x m grid when spp = m², otherwise
 // N-rooks (one sample per row and per column of an spp x spp grid, columns shuffled per pixel),
@@ -56,7 +58,6 @@
 #include "raykit/render/shade.hpp"
 #include "raykit/scene/build_options.hpp"
 #include "raykit/scene/camera.hpp"
-#include "raykit/scene/leaf_triangles.hpp"
 #include "raykit/util/parallel.hpp"
 
 namespace raykit {
@@ -180,8 +181,7 @@ inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const Render
     using Clock = std::chrono::steady_clock;
     auto ms_since = [](Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); };
     if (set.spp == 0) throw std::invalid_argument("raykit::render_cpu: spp must be at least 1");
-    if (!scene.mesh || !scene.bvh || !scene.materials)
-        throw std::invalid_argument("raykit::render_cpu: incomplete ShadeScene (use make_shade_scene)");
+    if (!scene.scene) throw std::invalid_argument("raykit::render_cpu: incomplete ShadeScene (use make_shade_scene)");
     const auto t_start = Clock::now();
 
     // ---- setup
@@ -268,46 +268,54 @@ inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const Render
 
 // ---------------------------------------------------------------- owning scene, framing, default light
 
-/// Everything a render needs, owned: mesh, BVH, optional LeafTriangles, materials, lights.
+/// The renderer's default tree: binned SAH with BlockBvh8::sah_config()'s leaf cost (blocks
+/// of 4, leaves up to 12), which the CPU walks as 8-wide nodes over 4-triangle blocks.
+inline BuildOptions render_build_options(unsigned threads = 0) {
+    BuildOptions b;
+    b.leaf_block = 4;
+    b.max_leaf_size = 12;
+    b.threads = threads;
+    return b;
+}
+
+/// Everything a render needs, owned: a Scene, one MaterialTable per object, lights.
 /// view() is valid until the RenderScene is modified, moved or destroyed.
 struct RenderScene {
-    Mesh mesh;
-    Bvh bvh;
-    LeafTriangles leaf;
-    bool use_leaf_triangles = true;
-    MaterialTable materials;
+    Scene scene;
+    std::vector<MaterialTable> materials;  ///< one per object, in object order
     std::vector<Light> lights;
-    double build_ms = 0.0;      ///< BVH build (+ LeafTriangles copy)
-    double materials_ms = 0.0;  ///< material table, texture loading included
+    double build_ms = 0.0;      ///< trees (binary build + blocks)
+    double materials_ms = 0.0;  ///< material tables, texture loading included
 
-    ShadeScene view() const {
-        return make_shade_scene(mesh, bvh, materials, lights, use_leaf_triangles ? &leaf : nullptr);
+    /// Adds `mesh` as an object with the tree `build` makes (BuildOptions: any builder) and
+    /// its material table (textures through `cache` when given); no instance. Returns its index.
+    std::uint32_t add_object(Mesh mesh, ObjectKind kind = ObjectKind::static_object, const BuildOptions& build = {},
+                             TextureCache* cache = nullptr) {
+        using Clock = std::chrono::steady_clock;
+        auto t0 = Clock::now();
+        Bvh bvh = build_bvh(MeshView(mesh), build);
+        const std::uint32_t id = scene.add_object(std::move(mesh), std::move(bvh), kind, build.threads);
+        build_ms += std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        t0 = Clock::now();
+        materials.push_back(make_material_table(scene.objects()[id].mesh, cache, build.threads));
+        materials_ms += std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        return id;
     }
-    /// Bounds of the finite vertices.
-    AABB bounds() const noexcept {
-        AABB b;
-        for (const vec3& p : mesh.positions)
-            if (is_finite(p)) b.grow(p);
-        return b;
-    }
+    /// The shaders' view (the top-level tree must be fresh: Scene::update_top_level()).
+    ShadeScene view() const { return make_shade_scene(scene, materials, lights); }
+    /// scene_bounds(scene): for one object, the bounds of its finite vertices.
+    AABB bounds() const { return scene_bounds(scene); }
 };
 
-/// Builds the BVH (with `build`), LeafTriangles (when `leaf_triangles`) and the material table
-/// (textures through `cache` when given) for `mesh`; no lights. Material warnings are in
-/// result.materials.warnings.
-inline RenderScene prepare_render_scene(Mesh mesh, const BuildOptions& build = {}, bool leaf_triangles = true,
+/// A RenderScene of one static object, `mesh`, at the identity, with the tree `build` makes
+/// (BlockBvh8::sah_config()'s leaves by default: the fastest CPU path) and its material table
+/// (textures through `cache` when given); no lights. Material warnings are in
+/// result.materials[0].warnings.
+inline RenderScene prepare_render_scene(Mesh mesh, BuildOptions build = render_build_options(),
                                         TextureCache* cache = nullptr) {
-    using Clock = std::chrono::steady_clock;
     RenderScene rs;
-    rs.mesh = std::move(mesh);
-    auto t0 = Clock::now();
-    rs.bvh = build_bvh(MeshView(rs.mesh), build);
-    rs.use_leaf_triangles = leaf_triangles;
-    if (leaf_triangles) rs.leaf.update(rs.mesh, rs.bvh, build.threads);
-    rs.build_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-    t0 = Clock::now();
-    rs.materials = make_material_table(rs.mesh, cache, build.threads);
-    rs.materials_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    rs.scene.add_instance(rs.add_object(std::move(mesh), ObjectKind::static_object, build, cache));
+    rs.scene.update_top_level();
     return rs;
 }
 

@@ -2,9 +2,10 @@
 //
 // Interface
 // ---------
-//   MaterialTable mt = make_material_table(mesh);
+//   Scene sc;  sc.add_instance(sc.add_object(mesh));  sc.update_top_level();   // scene/scene.hpp
+//   std::vector<MaterialTable> mt{make_material_table(sc.objects()[0].mesh)};   // one per object
 //   std::vector<Light> lights{Light::point({0, 5, 0}, vec3(1))};
-//   ShadeScene scene = make_shade_scene(mesh, bvh, mt, lights);      // non-owning view
+//   ShadeScene scene = make_shade_scene(sc, mt, lights);             // non-owning view
 //   ShadeSettings s;  s.shader = ShaderKind::whitted;  s.max_depth = 5;
 //   PathScratch scratch;  ShadeCounters counters;  SampleRng rng(seed);
 //   SampleResult r = shade_ray(scene, s, camera_ray, rng, counters, scratch);
@@ -50,6 +51,10 @@
 //
 // Geometry
 // --------
+//  * Scenes: every query is a Scene query (objects, instances, the top-level tree; the object
+//    trees walked are ShadeScene::trees). Surfaces are computed in object space and mapped to
+//    the world by the instance's transform (normals by its inverse transpose, renormalised);
+//    an identity instance is not mapped, so a one-object scene shades as its mesh alone.
 //  * Shading normal: the interpolated vertex normals when the mesh has them (and they do not
 //    cancel), else the geometric normal; both flipped to face the incoming ray.
 //  * Inside/outside for refraction: the side of the interpolated vertex normal when present,
@@ -77,8 +82,8 @@
 #include "raykit/math/hit.hpp"
 #include "raykit/math/offset.hpp"
 #include "raykit/render/material.hpp"
-#include "raykit/scene/leaf_triangles.hpp"
 #include "raykit/scene/mesh.hpp"
+#include "raykit/scene/scene.hpp"
 
 namespace raykit {
 
@@ -190,44 +195,57 @@ struct ShadeCounters {
     }
 };
 
+/// World box of a scene: its identity instances' finite vertices, and the world boxes
+/// (Scene::world_box) of the others.
+inline AABB scene_bounds(const Scene& scene) {
+    AABB b;
+    for (std::uint32_t i = 0; i < scene.instances().size(); ++i) {
+        const SceneInstance& in = scene.instances()[i];
+        if (!in.identity) {
+            b.grow(scene.world_box(i));
+            continue;
+        }
+        for (const vec3& p : scene.objects()[in.object].mesh.positions)
+            if (is_finite(p)) b.grow(p);
+    }
+    return b;
+}
+
 /// Non-owning view of everything the shaders read. Make it with make_shade_scene.
 struct ShadeScene {
-    const Mesh* mesh = nullptr;
-    const Bvh* bvh = nullptr;
-    const LeafTriangles* leaf = nullptr;   ///< optional faster trace path (same answers)
-    const MaterialTable* materials = nullptr;
+    const Scene* scene = nullptr;
+    std::span<const MaterialTable> materials;  ///< one per object of the scene, in object order
     std::span<const Light> lights;
-    AABB bounds;                           ///< of the mesh's finite vertices
-    bool alpha_testing = false;            ///< some material is alpha-tested
+    AABB bounds;                 ///< scene_bounds() (depth and ao defaults)
+    bool alpha_testing = false;  ///< some material is alpha-tested
+    SceneTrees trees = SceneTrees::blocks;  ///< what the traversals walk (binary: the device's node counts)
+
+    /// The mesh of instance `inst`'s object.
+    const Mesh& mesh_of(std::uint32_t inst) const noexcept { return scene->objects()[scene->instances()[inst].object].mesh; }
+    /// The material of triangle `prim` of instance `inst`'s object.
+    const RenderMaterial& material_of(std::uint32_t inst, std::uint32_t prim) const noexcept {
+        const std::uint32_t o = scene->instances()[inst].object;
+        return materials[o].for_triangle(scene->objects()[o].mesh, prim);
+    }
 };
 
-/// Checks the parts fit together and fills bounds and alpha_testing. `leaf` must have been
-/// made from (mesh, bvh) when given. Throws std::invalid_argument when the BVH does not cover
-/// the mesh's triangles or the vertex attribute arrays have the wrong length. All arguments
-/// must outlive the returned view.
-inline ShadeScene make_shade_scene(const Mesh& mesh, const Bvh& bvh, const MaterialTable& materials,
-                                   std::span<const Light> lights, const LeafTriangles* leaf = nullptr) {
-    if (bvh.prim_ids.size() != mesh.triangles.size() && !(mesh.triangles.empty() && bvh.empty()))
-        throw std::invalid_argument("raykit::make_shade_scene: BVH and mesh differ in triangle count");
-    if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
-        throw std::invalid_argument("raykit::make_shade_scene: normals must be empty or one per vertex");
-    if (!mesh.texcoords.empty() && mesh.texcoords.size() != mesh.positions.size())
-        throw std::invalid_argument("raykit::make_shade_scene: texcoords must be empty or one per vertex");
-    if (leaf && leaf->vertices.size() != bvh.prim_ids.size() * 3)
-        throw std::invalid_argument("raykit::make_shade_scene: LeafTriangles not made from this BVH");
-    for (const Triangle& t : mesh.triangles)
-        for (int c = 0; c < 3; ++c)
-            if (t.v[c] >= mesh.positions.size())
-                throw std::invalid_argument("raykit::make_shade_scene: triangle index out of range");
+/// Checks the parts fit together and fills bounds and alpha_testing. Throws
+/// std::invalid_argument when there is not one material table per object, and
+/// std::logic_error when the scene's top-level tree is stale (update_top_level()).
+/// All arguments must outlive the returned view; make it again after the scene changes.
+inline ShadeScene make_shade_scene(const Scene& scene, std::span<const MaterialTable> materials,
+                                   std::span<const Light> lights) {
+    if (materials.size() != scene.objects().size())
+        throw std::invalid_argument("raykit::make_shade_scene: one MaterialTable per object needed (" +
+                                    std::to_string(scene.objects().size()) + " objects, " +
+                                    std::to_string(materials.size()) + " tables)");
+    if (scene.stale()) throw std::logic_error("raykit::make_shade_scene: call Scene::update_top_level() first");
     ShadeScene s;
-    s.mesh = &mesh;
-    s.bvh = &bvh;
-    s.leaf = leaf;
-    s.materials = &materials;
+    s.scene = &scene;
+    s.materials = materials;
     s.lights = lights;
-    for (const vec3& p : mesh.positions)
-        if (is_finite(p)) s.bounds.grow(p);
-    s.alpha_testing = materials.any_alpha_tested();
+    s.bounds = scene_bounds(scene);
+    for (const MaterialTable& m : materials) s.alpha_testing = s.alpha_testing || m.any_alpha_tested();
     return s;
 }
 
@@ -293,83 +311,34 @@ inline vec2 interpolate_uv(const Mesh& m, std::uint32_t prim, float u, float v) 
     return m.texcoords[t.v[0]] * (1.0f - u - v) + m.texcoords[t.v[1]] * u + m.texcoords[t.v[2]] * v;
 }
 
-/// True when the hit (prim, u, v) lies on a cut-out texel of an alpha-tested material.
-inline bool cut_out(const ShadeScene& s, TextureFilter f, std::uint32_t prim, float u, float v) noexcept {
-    const RenderMaterial& m = s.materials->for_triangle(*s.mesh, prim);
+/// True when the hit (inst, prim, u, v) lies on a cut-out texel of an alpha-tested material.
+inline bool cut_out(const ShadeScene& s, TextureFilter f, std::uint32_t inst, std::uint32_t prim, float u,
+                    float v) noexcept {
+    const RenderMaterial& m = s.material_of(inst, prim);
     if (!m.alpha_tested) return false;
-    return m.map_kd->sample_alpha(interpolate_uv(*s.mesh, prim, u, v), f) < 0.5f;
+    return m.map_kd->sample_alpha(interpolate_uv(s.mesh_of(inst), prim, u, v), f) < 0.5f;
 }
 
-/// Closest-hit and any-hit queries over either vertex layout, with optional alpha testing.
-/// Answers equal intersect_closest / intersect_any (scene/trace.hpp, leaf_triangles.hpp) when
-/// no cut-out is involved.
-template <bool kLeaf, bool kAlpha>
+/// The shaders' two queries: Scene queries over the chosen object trees, alpha cut-outs
+/// filtered inside the walk when kAlpha.
+template <SceneTrees kTrees, bool kAlpha>
 struct Tracer {
     const ShadeScene& s;
     TextureFilter filter;
 
-    RAYKIT_INLINE void verts(std::uint32_t slot, std::uint32_t prim, const vec3*& a, const vec3*& b,
-                             const vec3*& c) const noexcept {
-        if constexpr (kLeaf) {
-            const vec3* v = s.leaf->vertices.data() + 3 * std::size_t(slot);
-            a = v, b = v + 1, c = v + 2;
-        } else {
-            const Triangle& t = s.mesh->triangles[prim];
-            const vec3* pos = s.mesh->positions.data();
-            a = pos + t.v[0], b = pos + t.v[1], c = pos + t.v[2];
-        }
+    RAYKIT_INLINE auto keep() const noexcept {
+        if constexpr (kAlpha)
+            return [this](std::uint32_t inst, std::uint32_t p, float u, float v) {
+                return !cut_out(s, filter, inst, p, u, v);
+            };
+        else
+            return AcceptAll{};
     }
-
     template <class Stats = std::nullptr_t>
     Hit closest(const Ray& ray, Stats stats = nullptr) const {
-        using Test = DefaultTriangleTest;
-        const Test::RayData rd = Test::prepare(ray);
-        const std::uint32_t* RAYKIT_RESTRICT ids = s.bvh->prim_ids.data();
-        Hit hit;
-        float tmax = ray.tmax;
-        traverse<ClosestHit>(
-            *s.bvh, ray, tmax,
-            [&](std::uint32_t first, std::uint32_t count, float& tm) {
-                bool found = false;
-                for (std::uint32_t k = first; k < first + count; ++k) {
-                    const std::uint32_t p = ids[k];
-                    const vec3 *a, *b, *c;
-                    verts(k, p, a, b, c);
-                    TriHit th;
-                    if (Test::intersect(rd, *a, *b, *c, ray.tmin, tm, th) && (th.t < hit.t || p < hit.prim)) {
-                        if constexpr (kAlpha)
-                            if (cut_out(s, filter, p, th.u, th.v)) continue;
-                        hit = {th.t, th.u, th.v, p, 0};
-                        tm = th.t;
-                        found = true;
-                    }
-                }
-                return found;
-            },
-            stats);
-        return hit;
+        return s.scene->template intersect_closest<kTrees>(ray, keep(), stats);
     }
-
-    bool any(const Ray& ray) const {
-        using Test = DefaultTriangleTest;
-        const Test::RayData rd = Test::prepare(ray);
-        const std::uint32_t* RAYKIT_RESTRICT ids = s.bvh->prim_ids.data();
-        float tmax = ray.tmax;
-        return traverse<AnyHit>(*s.bvh, ray, tmax, [&](std::uint32_t first, std::uint32_t count, float&) {
-            for (std::uint32_t k = first; k < first + count; ++k) {
-                const std::uint32_t p = ids[k];
-                const vec3 *a, *b, *c;
-                verts(k, p, a, b, c);
-                TriHit th;
-                if (Test::intersect(rd, *a, *b, *c, ray.tmin, ray.tmax, th)) {
-                    if constexpr (kAlpha)
-                        if (cut_out(s, filter, p, th.u, th.v)) continue;
-                    return true;
-                }
-            }
-            return false;
-        });
-    }
+    bool any(const Ray& ray) const { return s.scene->template intersect_any<kTrees>(ray, keep()); }
 };
 
 /// Times a callable into `ticks` and `bounce_ticks` (stage_ticks units) when `on`.
@@ -418,21 +387,31 @@ inline void basis(const vec3& n, vec3& t, vec3& b) noexcept {
 
 }  // namespace detail
 
-/// The surface seen by `ray` at `hit` (which must be valid); `d` is the unit ray direction.
+/// The surface seen by `ray` at `hit` (which must be valid, h.inst set); `d` is the unit
+/// world ray direction.
 inline SurfacePoint surface_point(const ShadeScene& s, const Hit& hit, const vec3& d, TextureFilter filter) {
-    const Mesh& m = *s.mesh;
+    const SceneInstance& in = s.scene->instances()[hit.inst];
+    const Mesh& m = s.scene->objects()[in.object].mesh;
     const Triangle& t = m.triangles[hit.prim];
     const float w0 = 1.0f - hit.u - hit.v;
     const vec3 &p0 = m.positions[t.v[0]], &p1 = m.positions[t.v[1]], &p2 = m.positions[t.v[2]];
+    // object space -> world: points by the transform, normals by its inverse transpose
+    const auto normal_to_world = [&](const vec3& n) {
+        if (in.identity) return n;
+        const float* a = in.to_object.m;
+        return vec3(a[0] * n.x + a[4] * n.y + a[8] * n.z, a[1] * n.x + a[5] * n.y + a[9] * n.z,
+                    a[2] * n.x + a[6] * n.y + a[10] * n.z);
+    };
     SurfacePoint sp;
     sp.p = p0 * w0 + p1 * hit.u + p2 * hit.v;
-    vec3 ng = glm::cross(p1 - p0, p2 - p0);
+    if (!in.identity) sp.p = in.to_world.point(sp.p);
+    vec3 ng = normal_to_world(glm::cross(p1 - p0, p2 - p0));
     const float lg = glm::length(ng);
     ng = lg > 0.0f && std::isfinite(lg) ? ng / lg : -d;
     bool entering = glm::dot(ng, d) < 0.0f;
     vec3 ns = ng;
     if (!m.normals.empty()) {
-        const vec3 n = m.normals[t.v[0]] * w0 + m.normals[t.v[1]] * hit.u + m.normals[t.v[2]] * hit.v;
+        const vec3 n = normal_to_world(m.normals[t.v[0]] * w0 + m.normals[t.v[1]] * hit.u + m.normals[t.v[2]] * hit.v);
         const float ln = glm::length(n);
         if (ln > 1e-12f && std::isfinite(ln)) {
             ns = n / ln;
@@ -443,7 +422,7 @@ inline SurfacePoint surface_point(const ShadeScene& s, const Hit& hit, const vec
     sp.ng = glm::dot(ng, d) > 0.0f ? -ng : ng;
     sp.ns = glm::dot(ns, d) > 0.0f ? -ns : ns;
     sp.uv = detail::interpolate_uv(m, hit.prim, hit.u, hit.v);
-    sp.material = &s.materials->for_triangle(m, hit.prim);
+    sp.material = &s.materials[in.object].for_triangle(m, hit.prim);
     sp.base = sp.material->kd;
     if (sp.material->map_kd) sp.base *= vec3(sp.material->map_kd->sample(sp.uv, filter));
     return sp;
@@ -451,10 +430,10 @@ inline SurfacePoint surface_point(const ShadeScene& s, const Hit& hit, const vec
 
 namespace detail {
 
-template <bool kLeaf, bool kAlpha>
+template <SceneTrees kTrees, bool kAlpha>
 SampleResult shade_impl(const ShadeScene& s, const ShadeSettings& set, const Ray& camera_ray, SampleRng& rng,
                         ShadeCounters& cnt, PathScratch& scratch) {
-    const Tracer<kLeaf, kAlpha> tr{s, set.filter};
+    const Tracer<kTrees, kAlpha> tr{s, set.filter};
     const bool tm = cnt.time_stages;
     SampleResult res;
     res.color = set.background;
@@ -625,19 +604,19 @@ SampleResult shade_impl(const ShadeScene& s, const ShadeSettings& set, const Ray
 /// Shades one camera ray (see the header comment). `scene` from make_shade_scene.
 inline SampleResult shade_ray(const ShadeScene& scene, const ShadeSettings& settings, const Ray& camera_ray,
                               SampleRng& rng, ShadeCounters& counters, PathScratch& scratch) {
-    if (!scene.mesh || !scene.bvh || !scene.materials)
-        throw std::invalid_argument("raykit::shade_ray: incomplete ShadeScene (use make_shade_scene)");
-    const bool leaf = scene.leaf != nullptr, alpha = scene.alpha_testing;
-    if (leaf && alpha) return detail::shade_impl<true, true>(scene, settings, camera_ray, rng, counters, scratch);
-    if (leaf) return detail::shade_impl<true, false>(scene, settings, camera_ray, rng, counters, scratch);
-    if (alpha) return detail::shade_impl<false, true>(scene, settings, camera_ray, rng, counters, scratch);
-    return detail::shade_impl<false, false>(scene, settings, camera_ray, rng, counters, scratch);
+    if (!scene.scene) throw std::invalid_argument("raykit::shade_ray: incomplete ShadeScene (use make_shade_scene)");
+    const bool blocks = scene.trees == SceneTrees::blocks, alpha = scene.alpha_testing;
+    using T = SceneTrees;
+    if (blocks && alpha) return detail::shade_impl<T::blocks, true>(scene, settings, camera_ray, rng, counters, scratch);
+    if (blocks) return detail::shade_impl<T::blocks, false>(scene, settings, camera_ray, rng, counters, scratch);
+    if (alpha) return detail::shade_impl<T::binary, true>(scene, settings, camera_ray, rng, counters, scratch);
+    return detail::shade_impl<T::binary, false>(scene, settings, camera_ray, rng, counters, scratch);
 }
 
 /// Closest hit of `ray` as the shaders see it (alpha cut-outs skipped).
 inline Hit shade_closest_hit(const ShadeScene& scene, const Ray& ray, TextureFilter filter = TextureFilter::bilinear) {
-    if (scene.alpha_testing) return detail::Tracer<false, true>{scene, filter}.closest(ray);
-    return detail::Tracer<false, false>{scene, filter}.closest(ray);
+    if (scene.alpha_testing) return detail::Tracer<SceneTrees::blocks, true>{scene, filter}.closest(ray);
+    return detail::Tracer<SceneTrees::blocks, false>{scene, filter}.closest(ray);
 }
 
 }  // namespace raykit

@@ -23,8 +23,13 @@
 // Only the default (watertight) test is offered on blocks.
 //
 // Memory: the wide nodes, 160 bytes per block, and nothing else (no prim_ids,
-// no mesh access while tracing). After vertices move, refit the binary tree,
-// collapse again and make() again (both linear).
+// no mesh access while tracing). After vertices move, refit(mesh) rewrites the
+// blocks from the mesh and the boxes bottom-up in place: the same tree, bit for
+// bit, as refitting the binary tree, collapsing and making again, without the
+// two allocations (bench_anim, BM_BlockRefit).
+//
+// Queries are closest_hit / any_hit of scene/trace.hpp over BlockLeaves: the
+// one traversal of every tree shape and leaf store.
 #pragma once
 
 #include <bit>
@@ -35,6 +40,7 @@
 #include <vector>
 
 #include "raykit/bvh/binned_sah.hpp"
+#include "raykit/bvh/refit.hpp"
 #include "raykit/bvh/traverse_wide.hpp"
 #include "raykit/bvh/wide.hpp"
 #include "raykit/intersect/triangle4.hpp"
@@ -42,6 +48,7 @@
 #include "raykit/math/limits.hpp"
 #include "raykit/scene/build.hpp"
 #include "raykit/scene/mesh.hpp"
+#include "raykit/scene/trace.hpp"
 #include "raykit/util/parallel.hpp"
 
 namespace raykit {
@@ -78,6 +85,42 @@ struct BlockBvhT {
         const Bvh bvh = BinnedSahBuilder::build(r.boxes, r.centers, sah_config(threads));
         if constexpr (W == 2) return assemble(mesh, bvh, threads);
         else return assemble(mesh, WideBvhT<W>::collapse(bvh), threads);
+    }
+
+    /// The leaf store the queries walk.
+    BlockLeaves leaves() const noexcept { return {blocks.data()}; }
+
+    /// After `mesh`'s vertices moved (same triangles, the mesh this was made
+    /// over): rewrites every block from the mesh and every box bottom-up, in
+    /// place. Equal to make(mesh, refitted source tree). No range check: the
+    /// caller checks the root box (Scene::move_vertices does).
+    void refit(const MeshView& mesh, unsigned threads = 0) {
+        if (empty()) return;
+        TriangleBlock4* RAYKIT_RESTRICT bl = blocks.data();
+        for (const TriangleBlock4& b : blocks)
+            for (int i = 0; i < 4; ++i)
+                if (b.prim[i] >= mesh.size()) throw std::invalid_argument("BlockBvh::refit: a block names a triangle outside the mesh");
+        parallel_for(blocks.size(), threads, [&](std::size_t k) {
+            for (int i = 0; i < 4; ++i) {
+                const std::uint32_t p = bl[k].prim[i];
+                bl[k].set(i, mesh.vertex(p, 0), mesh.vertex(p, 1), mesh.vertex(p, 2), p);
+            }
+        });
+        const auto leaf_box = [&](std::uint32_t first, std::uint32_t count) {
+            AABB b;  // lanes past a leaf's size repeat its last triangle: the union is the leaf's
+            for (std::uint32_t k = first; k < first + count; ++k)
+                for (int i = 0; i < 4; ++i) b.grow(mesh.bounds(bl[k].prim[i]));
+            return b;
+        };
+        if constexpr (W == 2) {
+            for (std::size_t i = tree.nodes.size(); i-- > 0;) {
+                Node& n = tree.nodes[i];
+                n.box = n.is_leaf() ? leaf_box(n.index, n.count)
+                                    : merge(tree.nodes[n.index].box, tree.nodes[n.index + 1].box);
+            }
+        } else {
+            tree.bounds = detail::refit_wide_nodes(tree.nodes, leaf_box);
+        }
     }
 
   private:
@@ -150,52 +193,15 @@ using BlockBvh8 = BlockBvhT<8>;  ///< 8-wide nodes, 4-triangle blocks
 
 /// Closest hit: the same answer as intersect_closest(mesh, bvh, ray) on the
 /// tree `b` was made from (watertight test, ties to the smaller index).
-template <int W, class Stats = std::nullptr_t>
-Hit intersect_closest(const BlockBvhT<W>& b, const Ray& ray, Stats stats = nullptr) {
-    const Watertight4::RayData rd = Watertight4::prepare(ray);
-    const TriangleBlock4* RAYKIT_RESTRICT blocks = b.blocks.data();
-    Hit hit;
-    float tmax = ray.tmax;
-    traverse<ClosestHit>(
-        b.tree, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float& tm) RAYKIT_LAMBDA_INLINE {
-            bool found = false;
-            for (std::uint32_t k = first; k < first + count; ++k) {
-                alignas(16) float t[4], u[4], v[4];
-                unsigned m = Watertight4::intersect(rd, blocks[k], ray.tmin, tm, t, u, v);
-                while (m) {  // lanes in order, as the scalar loop over the leaf's triangles
-                    const int i = std::countr_zero(m);
-                    m &= m - 1;
-                    const std::uint32_t p = blocks[k].prim[i];
-                    if (t[i] <= tm && (t[i] < hit.t || p < hit.prim)) {
-                        hit = {t[i], u[i], v[i], p, 0};
-                        tm = t[i];
-                        found = true;
-                    }
-                }
-            }
-            return found;
-        },
-        stats);
-    return hit;
+template <int W, class Stats = std::nullptr_t, class Keep = AcceptAll>
+Hit intersect_closest(const BlockBvhT<W>& b, const Ray& ray, Stats stats = nullptr, const Keep& keep = {}) {
+    return closest_hit(b.tree, b.leaves(), ray, keep, stats);
 }
 
 /// Any hit within [ray.tmin, ray.tmax].
-template <int W, class Stats = std::nullptr_t>
-bool intersect_any(const BlockBvhT<W>& b, const Ray& ray, Stats stats = nullptr) {
-    const Watertight4::RayData rd = Watertight4::prepare(ray);
-    const TriangleBlock4* RAYKIT_RESTRICT blocks = b.blocks.data();
-    float tmax = ray.tmax;
-    return traverse<AnyHit>(
-        b.tree, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float&) RAYKIT_LAMBDA_INLINE {
-            for (std::uint32_t k = first; k < first + count; ++k) {
-                alignas(16) float t[4], u[4], v[4];
-                if (Watertight4::intersect(rd, blocks[k], ray.tmin, ray.tmax, t, u, v)) return true;
-            }
-            return false;
-        },
-        stats);
+template <int W, class Stats = std::nullptr_t, class Keep = AcceptAll>
+bool intersect_any(const BlockBvhT<W>& b, const Ray& ray, Stats stats = nullptr, const Keep& keep = {}) {
+    return any_hit(b.tree, b.leaves(), ray, keep, stats);
 }
 
 }  // namespace raykit

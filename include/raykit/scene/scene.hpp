@@ -11,11 +11,16 @@
 //   scene.update_top_level();                     // rebuild (or refit) over instance world boxes
 //   Hit h = scene.intersect_closest(ray);         // h.inst = instance, h.prim = triangle of its object
 //
-// An object is a Mesh with its own bottom-level BVH (BinnedSahBuilder). A
-// static object never changes after add_object(). A dynamic object keeps an
-// untouched rest copy of its vertices (position, normal, uv): move_vertices()
-// computes every current vertex from its rest vertex — never from last
-// frame's — and refits the object's tree (topology kept, bvh/refit.hpp).
+// An object is a Mesh with its own bottom-level tree, built once by
+// BinnedSahBuilder (by default with BlockBvh8::sah_config(): leaf cost in
+// blocks of 4, leaves up to 12) and kept in two forms: the binary Bvh (what
+// the device uploads and refits) and the BlockBvh8 made from it (8-wide nodes,
+// 4-triangle blocks: what every CPU query walks, the fastest CPU path; see
+// scene/block_bvh.hpp). A static object never changes after add_object(). A
+// dynamic object keeps an untouched rest copy of its vertices (position,
+// normal, uv): move_vertices() computes every current vertex from its rest
+// vertex — never from last frame's — and refits both forms in place (topology
+// kept); rebuild_object() builds both anew from the current vertices.
 //
 // An instance places an object with an affine transform (mat4 whose last row
 // is 0 0 0 1). Rays are traced in object space: the world ray is mapped by
@@ -35,6 +40,16 @@
 //
 // Ties: smaller t wins, then the smaller instance, then the smaller triangle
 // (Hit::closer_than), whatever the tree.
+//
+// Queries are closest_hit / any_hit of scene/trace.hpp: the top-level tree
+// over a leaf store of instances, whose leaves run closest_hit / any_hit on
+// the object's tree (SceneTrees::blocks, the default, or the binary Bvh with
+// SceneTrees::binary: the same answers, the device's node counts). An
+// optional filter keep(instance, prim, u, v) rejects candidate hits (alpha
+// cut-outs); optional TraversalStats count the bottom-level trees' nodes and
+// leaves (the top level is not counted, so a one-instance scene counts what
+// its object's tree alone would). An instance whose transform is the identity
+// traces the world ray itself (no mapping, so -0 stays -0).
 //
 // Range (math/limits.hpp): object vertices (add_object, move_vertices,
 // set_positions) and instance world boxes (update_top_level) beyond ±2^32
@@ -57,6 +72,7 @@
 #include "raykit/bvh/traverse.hpp"
 #include "raykit/math/hit.hpp"
 #include "raykit/math/limits.hpp"
+#include "raykit/scene/block_bvh.hpp"
 #include "raykit/scene/build.hpp"
 #include "raykit/scene/mesh.hpp"
 #include "raykit/scene/trace.hpp"
@@ -134,11 +150,17 @@ static_assert(sizeof(Affine) == 48);
 
 enum class ObjectKind { static_object, dynamic };
 
+/// How a dynamic object's trees follow its moved vertices.
+enum class TreeUpdate { refit, rebuild };
+
 struct SceneObject {
     Mesh mesh;  ///< current geometry (for a dynamic object: as last moved)
-    Bvh bvh;
+    Bvh bvh;           ///< the built tree (the device's)
+    BlockBvh8 blocks;  ///< made from bvh: what CPU queries walk
+    BinnedSahBuilder::Config config;  ///< how bvh was built (rebuild_object builds the same way)
     ObjectKind kind = ObjectKind::static_object;
     std::vector<Vertex> rest;  ///< dynamic objects: the untouched rest vertices
+    bool moved = false;        ///< vertices written, trees not yet updated (Scene::update_object)
 
     bool dynamic() const noexcept { return kind == ObjectKind::dynamic; }
     /// Root box of the bottom-level tree (empty for an empty object).
@@ -150,7 +172,11 @@ struct SceneInstance {
     mat4 transform{1.0f};
     Affine to_world;   ///< transform
     Affine to_object;  ///< its inverse
+    bool identity = true;  ///< transform is the identity: rays are not mapped
 };
+
+/// Which bottom-level form a Scene query walks (same answers; see the header comment).
+enum class SceneTrees { blocks, binary };
 
 /// How update_top_level() brings the top-level tree up to date.
 enum class TopLevelUpdate { rebuild, refit };
@@ -181,33 +207,23 @@ inline AABB transformed_box(const AABB& box, const mat4& transform) {
 
 class Scene {
 public:
-    /// Adds an object; builds its BVH with `cfg`. Returns its index.
+    /// Adds an object; builds its trees with `cfg`. Returns its index.
     std::uint32_t add_object(Mesh mesh, ObjectKind kind = ObjectKind::static_object,
-                             const BinnedSahBuilder::Config& cfg = {}) {
-        if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
-            throw std::invalid_argument("raykit::Scene::add_object: normals must be empty or one per vertex");
-        if (!mesh.texcoords.empty() && mesh.texcoords.size() != mesh.positions.size())
-            throw std::invalid_argument("raykit::Scene::add_object: texcoords must be empty or one per vertex");
-        for (const Triangle& t : mesh.triangles)
-            for (int c = 0; c < 3; ++c)
-                if (t.v[c] >= mesh.positions.size())
-                    throw std::invalid_argument("raykit::Scene::add_object: triangle vertex index out of range");
-        check_positions(mesh.positions, "raykit::Scene::add_object");
-        SceneObject o;
-        o.kind = kind;
-        o.bvh = build_bvh<BinnedSahBuilder>(mesh, cfg);
-        if (kind == ObjectKind::dynamic) {
-            o.rest.resize(mesh.positions.size());
-            for (std::size_t i = 0; i < o.rest.size(); ++i) {
-                o.rest[i].position = mesh.positions[i];
-                if (!mesh.normals.empty()) o.rest[i].normal = mesh.normals[i];
-                if (!mesh.texcoords.empty()) o.rest[i].uv = mesh.texcoords[i];
-            }
-        }
-        o.mesh = std::move(mesh);
-        objects_.push_back(std::move(o));
-        stale_ = true;
-        return static_cast<std::uint32_t>(objects_.size() - 1);
+                             const BinnedSahBuilder::Config& cfg = BlockBvh8::sah_config()) {
+        check_mesh(mesh);
+        Bvh bvh = build_bvh<BinnedSahBuilder>(mesh, cfg);
+        return add(std::move(mesh), std::move(bvh), kind, cfg);
+    }
+    /// Adds an object with a tree built elsewhere over `mesh` (any builder);
+    /// rebuild_object() rebuilds it with BlockBvh8::sah_config(threads).
+    /// Throws std::invalid_argument when the tree does not cover the mesh.
+    std::uint32_t add_object(Mesh mesh, Bvh bvh, ObjectKind kind = ObjectKind::static_object, unsigned threads = 0) {
+        check_mesh(mesh);
+        if (bvh.prim_ids.size() != mesh.triangles.size())
+            throw std::invalid_argument("raykit::Scene::add_object: the tree covers " +
+                                        std::to_string(bvh.prim_ids.size()) + " triangles, the mesh has " +
+                                        std::to_string(mesh.triangles.size()));
+        return add(std::move(mesh), std::move(bvh), kind, BlockBvh8::sah_config(threads));
     }
 
     /// Places `object` with an affine `transform`. Returns the instance index.
@@ -230,28 +246,51 @@ public:
 
     /// Vertex stage of a dynamic object: vertex i becomes fn(rest[i], i)
     /// (a Vertex); positions (and normals/uvs where the mesh has them) are
-    /// written, then the object's tree is refitted. Throws std::logic_error
-    /// for a static object, and std::domain_error when a moved position is
-    /// beyond ±2^32 (math/limits.hpp; the object is then put back to its rest
-    /// vertices, refitted, so it stays consistent).
+    /// written, then the object's trees are refitted (write_vertices, then
+    /// update_object). Throws std::logic_error for a static object, and
+    /// std::domain_error when a moved position is beyond ±2^32
+    /// (math/limits.hpp; the object is then put back to its rest vertices,
+    /// refitted, so it stays consistent).
     template <class Fn>
     void move_vertices(std::uint32_t object, Fn&& fn, unsigned threads = 0) {
-        SceneObject& o = dynamic_object(object, "move_vertices");
+        write_vertices(object, fn, threads);
+        update_object(object, TreeUpdate::refit, threads);
+    }
+
+    /// The vertex stage alone: vertex i becomes fn(rest[i], i). The object's
+    /// trees are out of date until update_object(); tracing or
+    /// update_top_level() before that throws std::logic_error.
+    template <class Fn>
+    void write_vertices(std::uint32_t object, Fn&& fn, unsigned threads = 0) {
+        SceneObject& o = dynamic_object(object, "write_vertices");
         Mesh& m = o.mesh;
+        o.moved = true;
+        stale_ = true;
         parallel_for(o.rest.size(), threads, [&](std::size_t i) {
             const Vertex v = fn(static_cast<const Vertex&>(o.rest[i]), static_cast<std::uint32_t>(i));
             m.positions[i] = v.position;
             if (!m.normals.empty()) m.normals[i] = v.normal;
             if (!m.texcoords.empty()) m.texcoords[i] = v.uv;
         });
-        refit_object(object);
-        // the range check of the per-frame path is one test of the refitted root box, not a
-        // pass over the vertices; the vertices are searched only to name the culprit
-        const AABB root = o.bounds();
-        if (root.is_empty() || (coordinate_in_range(root.min.x) && coordinate_in_range(root.min.y) &&
-                                coordinate_in_range(root.min.z) && coordinate_in_range(root.max.x) &&
-                                coordinate_in_range(root.max.y) && coordinate_in_range(root.max.z)))
-            return;
+    }
+
+    /// Brings a dynamic object's trees up to date after its vertices moved:
+    /// refit both in place, or rebuild both (its config). The range check is one
+    /// test of the new root box, not a pass over the vertices; on failure the
+    /// vertices are searched to name the culprit, the object goes back to its
+    /// rest vertices (refitted) and std::domain_error is thrown.
+    void update_object(std::uint32_t object, TreeUpdate how, unsigned threads = 0) {
+        SceneObject& o = dynamic_object(object, "update_object");
+        Mesh& m = o.mesh;
+        if (how == TreeUpdate::rebuild) {
+            // a vertex out of range would make the builder throw first: check the refit's box instead
+            refit_object(object, threads);
+            if (root_in_range(o)) rebuild_object(object);
+        } else {
+            refit_object(object, threads);
+        }
+        o.moved = false;
+        if (root_in_range(o)) return;
         std::string why = "raykit::Scene::move_vertices: the object's box leaves [-2^32, 2^32] (raykit/math/limits.hpp)";
         try {
             check_positions(m.positions, "raykit::Scene::move_vertices");
@@ -263,7 +302,7 @@ public:
             if (!m.normals.empty()) m.normals[i] = o.rest[i].normal;
             if (!m.texcoords.empty()) m.texcoords[i] = o.rest[i].uv;
         }
-        refit_object(object);
+        refit_object(object, threads);
         throw std::domain_error(why);
     }
 
@@ -279,11 +318,20 @@ public:
         refit_object(object);
     }
 
-    /// Refits one object's tree to its current positions (bvh/refit.hpp).
-    void refit_object(std::uint32_t object) {
+    /// Refits one object's trees (binary and blocks) to its current positions, in place.
+    void refit_object(std::uint32_t object, unsigned threads = 0) {
         SceneObject& o = objects_.at(object);
         const MeshView view(o.mesh);
         refit(o.bvh, [&](std::uint32_t i) { return view.bounds(i); });
+        o.blocks.refit(view, threads);
+        stale_ = true;
+    }
+
+    /// Builds one object's trees anew from its current positions (its config).
+    void rebuild_object(std::uint32_t object) {
+        SceneObject& o = objects_.at(object);
+        o.bvh = build_bvh<BinnedSahBuilder>(o.mesh, o.config);
+        o.blocks = BlockBvh8::make(o.mesh, o.bvh, o.config.threads);
         stale_ = true;
     }
 
@@ -307,6 +355,10 @@ public:
     /// world_box()'s padding; math/limits.hpp) throws std::domain_error
     /// naming its instance, leaving the tree as it was.
     void update_top_level(const std::vector<AABB>& world_boxes, TopLevelUpdate mode = TopLevelUpdate::rebuild) {
+        for (std::size_t i = 0; i < objects_.size(); ++i)
+            if (objects_[i].moved)
+                throw std::logic_error("raykit::Scene::update_top_level: object " + std::to_string(i) +
+                                       " moved without update_object()");
         if (world_boxes.size() != instances_.size())
             throw std::invalid_argument("raykit::Scene::update_top_level: one box per instance needed");
         // world_box() pads by 2^-20 of the largest coordinate: an object at
@@ -345,43 +397,19 @@ public:
 
     // ------------------------------------------------------------ queries
 
-    /// Closest hit over all instances (h.inst set), or a miss.
-    Hit intersect_closest(const Ray& ray) const {
+    /// Closest hit over all instances (h.inst set), or a miss. `keep(inst, prim, u, v)`
+    /// filters candidate hits; `stats` counts the bottom-level walks.
+    template <SceneTrees Trees = SceneTrees::blocks, class Keep = AcceptAll, class Stats = std::nullptr_t>
+    Hit intersect_closest(const Ray& ray, const Keep& keep = {}, Stats stats = nullptr) const {
         require_fresh();
-        Hit best;
-        float tmax = ray.tmax;
-        traverse<ClosestHit>(top_, ray, tmax, [&](std::uint32_t first, std::uint32_t count, float& tm) {
-            bool found = false;
-            for (std::uint32_t k = first; k < first + count; ++k) {
-                const std::uint32_t inst = top_.prim_ids[k];
-                const SceneInstance& in = instances_[inst];
-                const SceneObject& o = objects_[in.object];
-                Hit h = raykit::intersect_closest(o.mesh, o.bvh, object_ray(in, ray, tm));
-                if (!h.valid()) continue;
-                h.inst = inst;
-                if (h.closer_than(best)) {
-                    best = h;
-                    tm = h.t;
-                    found = true;
-                }
-            }
-            return found;
-        });
-        return best;
+        return closest_hit(top_, InstanceLeaves<Trees, Keep, Stats>{this, keep, stats}, ray);
     }
 
-    /// True when any instance is hit in [tmin, tmax].
-    bool intersect_any(const Ray& ray) const {
+    /// True when any instance is hit in [tmin, tmax] (filtered by `keep` as above).
+    template <SceneTrees Trees = SceneTrees::blocks, class Keep = AcceptAll>
+    bool intersect_any(const Ray& ray, const Keep& keep = {}) const {
         require_fresh();
-        float tmax = ray.tmax;
-        return traverse<AnyHit>(top_, ray, tmax, [&](std::uint32_t first, std::uint32_t count, float&) {
-            for (std::uint32_t k = first; k < first + count; ++k) {
-                const SceneInstance& in = instances_[top_.prim_ids[k]];
-                const SceneObject& o = objects_[in.object];
-                if (raykit::intersect_any(o.mesh, o.bvh, object_ray(in, ray, ray.tmax))) return true;
-            }
-            return false;
-        });
+        return any_hit(top_, InstanceLeaves<Trees, Keep, std::nullptr_t>{this, keep, nullptr}, ray);
     }
 
     /// Oracle: every triangle of every instance, in object space (the same
@@ -421,6 +449,11 @@ public:
 
     /// The object-space ray for `in` with tmax replaced by `tmax`.
     static Ray object_ray(const SceneInstance& in, const Ray& ray, float tmax) noexcept {
+        if (in.identity) {
+            Ray r = ray;
+            r.tmax = tmax;
+            return r;
+        }
         Ray r;
         r.org = in.to_object.point(ray.org);
         r.dir = in.to_object.vector(ray.dir);
@@ -439,10 +472,100 @@ public:
     }
 
 private:
+    /// The top-level leaf store: a slot is an instance; its leaf runs the object's walk.
+    template <SceneTrees Trees, class Keep, class Stats>
+    struct InstanceLeaves {
+        const Scene* scene;
+        const Keep& keep;
+        Stats stats;
+        struct RayData {};
+        static RayData prepare(const Ray&) noexcept { return {}; }
+
+        template <class Fn>
+        RAYKIT_INLINE auto object_query(const SceneObject& o, std::uint32_t inst, Fn&& fn) const {
+            const auto run = [&](const auto& k) {
+                if constexpr (Trees == SceneTrees::blocks) return fn(o.blocks.tree, o.blocks.leaves(), k);
+                else return fn(o.bvh, indexed_leaves(o.mesh, o.bvh), k);
+            };
+            if constexpr (kFilters<Keep>)
+                return run([&](std::uint32_t p, float u, float v) { return keep(inst, p, u, v); });
+            else
+                return run(AcceptAll{});
+        }
+        template <class K, class S>
+        bool closest(RayData, const Ray& ray, std::uint32_t first, std::uint32_t count, float& tm, Hit& best,
+                     const K&, S) const {
+            bool found = false;
+            for (std::uint32_t k = first; k < first + count; ++k) {
+                const std::uint32_t inst = scene->top_.prim_ids[k];
+                const SceneInstance& in = scene->instances_[inst];
+                const SceneObject& o = scene->objects_[in.object];
+                const Ray r = object_ray(in, ray, tm);
+                Hit h = object_query(o, inst, [&](const auto& tree, const auto& leaves, const auto& kp) {
+                    return closest_hit(tree, leaves, r, kp, stats);
+                });
+                if (!h.valid()) continue;
+                h.inst = inst;
+                if (h.closer_than(best)) {
+                    best = h;
+                    tm = h.t;
+                    found = true;
+                }
+            }
+            return found;
+        }
+        template <class K, class S>
+        bool any(RayData, const Ray& ray, std::uint32_t first, std::uint32_t count, const K&, S) const {
+            for (std::uint32_t k = first; k < first + count; ++k) {
+                const std::uint32_t inst = scene->top_.prim_ids[k];
+                const SceneInstance& in = scene->instances_[inst];
+                const SceneObject& o = scene->objects_[in.object];
+                const Ray r = object_ray(in, ray, ray.tmax);
+                if (object_query(o, inst, [&](const auto& tree, const auto& leaves, const auto& kp) {
+                        return any_hit(tree, leaves, r, kp);
+                    }))
+                    return true;
+            }
+            return false;
+        }
+    };
+
+    static void check_mesh(const Mesh& mesh) {
+        if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
+            throw std::invalid_argument("raykit::Scene::add_object: normals must be empty or one per vertex");
+        if (!mesh.texcoords.empty() && mesh.texcoords.size() != mesh.positions.size())
+            throw std::invalid_argument("raykit::Scene::add_object: texcoords must be empty or one per vertex");
+        for (const Triangle& t : mesh.triangles)
+            for (int c = 0; c < 3; ++c)
+                if (t.v[c] >= mesh.positions.size())
+                    throw std::invalid_argument("raykit::Scene::add_object: triangle vertex index out of range");
+        check_positions(mesh.positions, "raykit::Scene::add_object");
+    }
+    std::uint32_t add(Mesh mesh, Bvh bvh, ObjectKind kind, const BinnedSahBuilder::Config& cfg) {
+        SceneObject o;
+        o.kind = kind;
+        o.config = cfg;
+        o.blocks = BlockBvh8::make(mesh, bvh, cfg.threads);
+        o.bvh = std::move(bvh);
+        if (kind == ObjectKind::dynamic) {
+            o.rest.resize(mesh.positions.size());
+            for (std::size_t i = 0; i < o.rest.size(); ++i) {
+                o.rest[i].position = mesh.positions[i];
+                if (!mesh.normals.empty()) o.rest[i].normal = mesh.normals[i];
+                if (!mesh.texcoords.empty()) o.rest[i].uv = mesh.texcoords[i];
+            }
+        }
+        o.mesh = std::move(mesh);
+        objects_.push_back(std::move(o));
+        stale_ = true;
+        return static_cast<std::uint32_t>(objects_.size() - 1);
+    }
+
     static void set(SceneInstance& in, const mat4& transform) {
         in.to_object = Affine::inverse_of(transform);  // validates first
         in.to_world = Affine::from_mat4(transform);
         in.transform = transform;
+        in.identity = transform == mat4(1.0f);
     }
     SceneObject& dynamic_object(std::uint32_t object, const char* what) {
         if (object >= objects_.size())
@@ -452,6 +575,12 @@ private:
             throw std::logic_error(std::string("raykit::Scene::") + what + ": object " + std::to_string(object) +
                                    " is static");
         return o;
+    }
+    static bool root_in_range(const SceneObject& o) noexcept {
+        const AABB root = o.bounds();
+        return root.is_empty() || (coordinate_in_range(root.min.x) && coordinate_in_range(root.min.y) &&
+                                   coordinate_in_range(root.min.z) && coordinate_in_range(root.max.x) &&
+                                   coordinate_in_range(root.max.y) && coordinate_in_range(root.max.z));
     }
     void require_fresh() const {
         if (stale_) throw std::logic_error("raykit::Scene: call update_top_level() before tracing");

@@ -1,113 +1,206 @@
-// raykit/scene/trace.hpp — closest-hit and any-hit queries on a mesh + BVH,
-// and the brute-force oracle they are tested against.
+// raykit/scene/trace.hpp — the one closest-hit and one any-hit traversal of every tree
+// shape × leaf store, and the brute-force oracle they are tested against.
 //
-//   Hit h = intersect_closest(mesh, bvh, ray);                // watertight test
+//   Hit h = intersect_closest(mesh, bvh, ray);                // a Bvh, WideBvh or WideBvh8 over a mesh
 //   Hit h = intersect_closest<MollerTrumbore>(mesh, bvh, ray);
 //   bool blocked = intersect_any(mesh, bvh, shadow_ray);
+//   Hit b = intersect_closest(blocks, ray);                   // BlockBvh (scene/block_bvh.hpp)
+//   Hit g = closest_hit(tree, leaves, ray, keep, &stats);     // the one walk those call
 //
-// Ties (two triangles at the same t) go to the smaller triangle index, so the
-// answer does not depend on the tree or traversal order.
+// The acceleration concept is a tree shape (bvh/node.hpp's binary Bvh, bvh/wide.hpp's 4- and
+// 8-wide trees: traverse<Mode> walks each) composed with a leaf store that tests the triangles of
+// a leaf's slot range:
+//   IndexedLeaves<Test>  slots → prim_ids → the mesh's triangle → its three positions; any
+//                        triangle test (Test); no copy of the geometry.
+//   BlockLeaves          slots are TriangleBlock4s: four triangles' vertices copied in leaf
+//                        order, one 4-lane watertight test per block (the fastest CPU path).
+//   Scene's instance store (scene/scene.hpp) is a third: a top-level leaf maps the ray into an
+//                        object and runs closest_hit on that object's tree.
+// closest_hit / any_hit are the only CPU traversals: every query of raykit (meshes, blocks,
+// scenes, the renderer) goes through them, so a change to the walk or a leaf loop is made once.
+//
+// A leaf filter `keep(prim, u, v)` (true = a real hit) runs only on candidate hits: alpha
+// cut-outs and user callbacks. AcceptAll, the default, is compiled out. The optional Stats
+// policy (TraversalStats*, or nullptr for none) counts inner nodes and leaves visited.
+//
+// Ties (two triangles at the same t) go to the smaller triangle index, so the answer does not
+// depend on the tree, the shape or the leaf store.
 #pragma once
+
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+#include <type_traits>
 
 #include "raykit/bvh/traverse.hpp"
 #include "raykit/bvh/traverse_wide.hpp"
 #include "raykit/intersect/triangle.hpp"
+#include "raykit/intersect/triangle4.hpp"
 #include "raykit/math/hit.hpp"
 #include "raykit/scene/mesh.hpp"
 
 namespace raykit {
 
-namespace detail {
+/// The leaf filter that keeps every hit; traversals compile its calls out.
+struct AcceptAll {
+    constexpr bool operator()(std::uint32_t, float, float) const noexcept { return true; }
+};
+/// True when `F` is a real filter (anything but AcceptAll).
+template <class F>
+inline constexpr bool kFilters = !std::is_same_v<std::remove_cvref_t<F>, AcceptAll>;
 
-/// Closest hit over a BVH whose leaf slots k yield their triangle's corners
-/// through `corners(k, a, b, c)` (pointers to the three vertices). The
-/// triangle index, prim_ids[k], is read only on a hit (for the tie rule), so
-/// every triangle source — indexed mesh or leaf-ordered copy — shares this loop.
-template <class Test, class Tree, class Corners, class Stats>
-RAYKIT_INLINE Hit closest_over_slots(const Tree& bvh, const Ray& ray, Corners&& corners, Stats stats) {
-    const typename Test::RayData rd = Test::prepare(ray);
-    const std::uint32_t* RAYKIT_RESTRICT ids = bvh.prim_ids.data();
+/// Leaf store over an indexed mesh: slot k is triangle ids[k], tested with `Test`.
+template <class Test = DefaultTriangleTest>
+struct IndexedLeaves {
+    const vec3* RAYKIT_RESTRICT pos;
+    const Triangle* RAYKIT_RESTRICT tris;
+    const std::uint32_t* RAYKIT_RESTRICT ids;
+
+    using RayData = typename Test::RayData;
+    static RayData prepare(const Ray& r) noexcept { return Test::prepare(r); }
+
+    /// Closest accepted hit among slots [first, first + count) within [tmin, tm]; shrinks tm.
+    template <class Keep, class Stats>
+    RAYKIT_INLINE bool closest(const RayData& rd, const Ray& ray, std::uint32_t first, std::uint32_t count,
+                               float& tm, Hit& hit, const Keep& keep, Stats) const {
+        bool found = false;
+        for (std::uint32_t k = first; k < first + count; ++k) {
+            const std::uint32_t p = ids[k];
+            const Triangle& t = tris[p];
+            TriHit th;
+            if (Test::intersect(rd, pos[t.v[0]], pos[t.v[1]], pos[t.v[2]], ray.tmin, tm, th) &&
+                (th.t < hit.t || p < hit.prim)) {
+                if constexpr (kFilters<Keep>)
+                    if (!keep(p, th.u, th.v)) continue;
+                hit = {th.t, th.u, th.v, p, 0};
+                tm = th.t;
+                found = true;
+            }
+        }
+        return found;
+    }
+    /// True when some slot in [first, first + count) has an accepted hit in [tmin, tmax].
+    template <class Keep, class Stats>
+    RAYKIT_INLINE bool any(const RayData& rd, const Ray& ray, std::uint32_t first, std::uint32_t count,
+                           const Keep& keep, Stats) const {
+        for (std::uint32_t k = first; k < first + count; ++k) {
+            const std::uint32_t p = ids[k];
+            const Triangle& t = tris[p];
+            TriHit th;
+            if (Test::intersect(rd, pos[t.v[0]], pos[t.v[1]], pos[t.v[2]], ray.tmin, ray.tmax, th)) {
+                if constexpr (kFilters<Keep>)
+                    if (!keep(p, th.u, th.v)) continue;
+                return true;
+            }
+        }
+        return false;
+    }
+};
+
+/// Leaf store of 4-triangle blocks: slot k is blocks[k] (watertight test only).
+struct BlockLeaves {
+    const TriangleBlock4* RAYKIT_RESTRICT blocks;
+
+    using RayData = Watertight4::RayData;
+    static RayData prepare(const Ray& r) noexcept { return Watertight4::prepare(r); }
+
+    template <class Keep, class Stats>
+    RAYKIT_INLINE bool closest(const RayData& rd, const Ray& ray, std::uint32_t first, std::uint32_t count,
+                               float& tm, Hit& hit, const Keep& keep, Stats) const {
+        bool found = false;
+        for (std::uint32_t k = first; k < first + count; ++k) {
+            alignas(16) float t[4], u[4], v[4];
+            unsigned m = Watertight4::intersect(rd, blocks[k], ray.tmin, tm, t, u, v);
+            while (m) {  // lanes in order, as a scalar loop over the leaf's triangles
+                const int i = std::countr_zero(m);
+                m &= m - 1;
+                const std::uint32_t p = blocks[k].prim[i];
+                if (t[i] <= tm && (t[i] < hit.t || p < hit.prim)) {
+                    if constexpr (kFilters<Keep>)
+                        if (!keep(p, u[i], v[i])) continue;
+                    hit = {t[i], u[i], v[i], p, 0};
+                    tm = t[i];
+                    found = true;
+                }
+            }
+        }
+        return found;
+    }
+    template <class Keep, class Stats>
+    RAYKIT_INLINE bool any(const RayData& rd, const Ray& ray, std::uint32_t first, std::uint32_t count,
+                           const Keep& keep, Stats) const {
+        for (std::uint32_t k = first; k < first + count; ++k) {
+            alignas(16) float t[4], u[4], v[4];
+            unsigned m = Watertight4::intersect(rd, blocks[k], ray.tmin, ray.tmax, t, u, v);
+            if constexpr (!kFilters<Keep>) {
+                if (m) return true;
+            } else {
+                while (m) {
+                    const int i = std::countr_zero(m);
+                    m &= m - 1;
+                    if (keep(blocks[k].prim[i], u[i], v[i])) return true;
+                }
+            }
+        }
+        return false;
+    }
+};
+
+/// Closest accepted hit of `ray` in `tree` (a Bvh or WideBvhT) over `leaves`.
+template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
+RAYKIT_INLINE Hit closest_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep = {},
+                              Stats stats = nullptr) {
+    const typename Leaves::RayData rd = Leaves::prepare(ray);
     Hit hit;
     float tmax = ray.tmax;
     traverse<ClosestHit>(
-        bvh, ray, tmax,
+        tree, ray, tmax,
         [&](std::uint32_t first, std::uint32_t count, float& tm) RAYKIT_LAMBDA_INLINE {
-            bool found = false;
-            for (std::uint32_t k = first; k < first + count; ++k) {
-                const vec3 *a, *b, *c;
-                corners(k, a, b, c);
-                TriHit th;
-                if (Test::intersect(rd, *a, *b, *c, ray.tmin, tm, th)) {
-                    const std::uint32_t p = ids[k];
-                    if (th.t < hit.t || p < hit.prim) {
-                        hit = {th.t, th.u, th.v, p, 0};
-                        tm = th.t;
-                        found = true;
-                    }
-                }
-            }
-            return found;
+            return leaves.closest(rd, ray, first, count, tm, hit, keep, stats);
         },
         stats);
     return hit;
 }
 
-/// Any hit over leaf slots, with corners as in closest_over_slots.
-template <class Test, class Tree, class Corners, class Stats>
-RAYKIT_INLINE bool any_over_slots(const Tree& bvh, const Ray& ray, Corners&& corners, Stats stats) {
-    const typename Test::RayData rd = Test::prepare(ray);
+/// True when `ray` has an accepted hit in [ray.tmin, ray.tmax].
+template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
+RAYKIT_INLINE bool any_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep = {},
+                           Stats stats = nullptr) {
+    const typename Leaves::RayData rd = Leaves::prepare(ray);
     float tmax = ray.tmax;
     return traverse<AnyHit>(
-        bvh, ray, tmax,
+        tree, ray, tmax,
         [&](std::uint32_t first, std::uint32_t count, float&) RAYKIT_LAMBDA_INLINE {
-            for (std::uint32_t k = first; k < first + count; ++k) {
-                const vec3 *a, *b, *c;
-                corners(k, a, b, c);
-                TriHit th;
-                if (Test::intersect(rd, *a, *b, *c, ray.tmin, ray.tmax, th)) return true;
-            }
-            return false;
+            return leaves.any(rd, ray, first, count, keep, stats);
         },
         stats);
 }
 
-/// Corners of slot k of an indexed mesh: prim_ids → triangle → positions.
-struct IndexedCorners {
-    const vec3* RAYKIT_RESTRICT pos;
-    const Triangle* RAYKIT_RESTRICT tris;
-    const std::uint32_t* RAYKIT_RESTRICT ids;
-    RAYKIT_INLINE void operator()(std::uint32_t k, const vec3*& a, const vec3*& b, const vec3*& c) const noexcept {
-        const Triangle& t = tris[ids[k]];
-        a = pos + t.v[0], b = pos + t.v[1], c = pos + t.v[2];
-    }
+/// The index store of `tree` (built over `mesh`) for triangle test `Test`.
+template <class Test = DefaultTriangleTest, class Tree>
+IndexedLeaves<Test> indexed_leaves(const MeshView& mesh, const Tree& tree) noexcept {
+    return {mesh.positions.data(), mesh.triangles.data(), tree.prim_ids.data()};
+}
+
+/// A tree whose leaves index prim_ids: Bvh, WideBvh, WideBvh8.
+template <class T>
+concept IndexedTree = requires(const T& t) {
+    t.nodes;
+    t.prim_ids;
 };
 
-}  // namespace detail
-
-template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
-Hit intersect_closest(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stats stats = nullptr) {
-    return detail::closest_over_slots<Test>(
-        bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
+/// Closest hit over an indexed mesh (ties to the smaller triangle index).
+template <class Test = DefaultTriangleTest, IndexedTree Tree, class Stats = std::nullptr_t, class Keep = AcceptAll>
+Hit intersect_closest(const MeshView& mesh, const Tree& tree, const Ray& ray, Stats stats = nullptr,
+                      const Keep& keep = {}) {
+    return closest_hit(tree, indexed_leaves<Test>(mesh, tree), ray, keep, stats);
 }
 
-template <class Test = DefaultTriangleTest, class Stats = std::nullptr_t>
-bool intersect_any(const MeshView& mesh, const Bvh& bvh, const Ray& ray, Stats stats = nullptr) {
-    return detail::any_over_slots<Test>(
-        bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
-}
-
-/// The same queries on a WideBvh or WideBvh8 (bvh/wide.hpp) collapsed from a
-/// binary tree: same answers, fewer nodes visited.
-template <class Test = DefaultTriangleTest, int W, class Stats = std::nullptr_t>
-Hit intersect_closest(const MeshView& mesh, const WideBvhT<W>& bvh, const Ray& ray, Stats stats = nullptr) {
-    return detail::closest_over_slots<Test>(
-        bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
-}
-
-template <class Test = DefaultTriangleTest, int W, class Stats = std::nullptr_t>
-bool intersect_any(const MeshView& mesh, const WideBvhT<W>& bvh, const Ray& ray, Stats stats = nullptr) {
-    return detail::any_over_slots<Test>(
-        bvh, ray, detail::IndexedCorners{mesh.positions.data(), mesh.triangles.data(), bvh.prim_ids.data()}, stats);
+/// Any hit over an indexed mesh.
+template <class Test = DefaultTriangleTest, IndexedTree Tree, class Stats = std::nullptr_t, class Keep = AcceptAll>
+bool intersect_any(const MeshView& mesh, const Tree& tree, const Ray& ray, Stats stats = nullptr,
+                   const Keep& keep = {}) {
+    return any_hit(tree, indexed_leaves<Test>(mesh, tree), ray, keep, stats);
 }
 
 /// Tests every triangle: the oracle for traversal tests.
