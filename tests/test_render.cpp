@@ -718,6 +718,103 @@ TEST(Render, InstancedSceneRendersAsItsWorldMesh) {
     }
 }
 
+// ---------------------------------------------------------------- FrameLoop
+
+namespace {
+
+/// A vertex hook: a wave through the object at time t, plus (from `throw_at`) a sector
+/// of it thrown away by `throw_by`, which breaks the tree's neighbourhoods.
+Vertex wave(const Vertex& v, float t, float throw_by = 0.0f) {
+    Vertex o = v;
+    o.position.y += 0.15f * std::sin(4.0f * v.position.x + t);
+    if (v.position.x > 0.6f) o.position += vec3(throw_by, 0.5f * throw_by, 0.0f);
+    o.normal = glm::normalize(v.normal + vec3(0.0f, 0.1f * std::cos(t), 0.0f));
+    return o;
+}
+
+/// The scene of the FrameLoop tests: a static torus at the identity and a dynamic sphere (with
+/// vertex normals) placed by a turned, scaled instance; `sphere` replaces the sphere's mesh.
+RenderScene two_object_scene(const Mesh& sphere, ObjectKind kind) {
+    RenderScene rs;
+    const std::uint32_t torus = rs.add_object(make_bumpy_torus(6000));
+    const std::uint32_t ball = rs.add_object(sphere, kind);
+    rs.scene.add_instance(torus);
+    rs.scene.add_instance(ball, glm::scale(glm::rotate(glm::translate(mat4(1.0f), vec3(0.3f, 0.9f, 0.2f)), 3.5f,
+                                                       vec3(0.0f, 1.0f, 0.0f)),
+                                           vec3(0.5f)));
+    rs.scene.update_top_level();
+    return rs;
+}
+
+}  // namespace
+
+TEST(FrameLoop, EachFrameEqualsTheSceneBuiltFromScratch) {
+    // Oracle: for each frame, a scene built anew from the vertices the hook gives (static
+    // objects, fresh trees), rendered by render_cpu. The loop refits in place (or rebuilds)
+    // instead; the image must be the same bit for bit, and the static object untouched.
+    Mesh sphere = make_icosphere(3);
+    sphere.normals = sphere.positions;
+    RenderScene rs = two_object_scene(sphere, ObjectKind::dynamic);
+    const Camera cam = frame_scene(rs.bounds(), 80, 60);
+    rs.lights.push_back(default_key_light(cam));
+    const std::vector<vec3> static_before = rs.scene.objects()[0].mesh.positions;
+    const auto static_nodes = rs.scene.objects()[0].bvh.nodes;
+    RenderSettings set;
+    set.jitter = false;
+    set.shade.max_depth = 1;
+    FrameLoop loop(rs, set);
+    std::uint32_t rebuilds = 0;
+    for (int f = 0; f < 6; ++f) {
+        const float t = 0.7f * float(f), throw_by = f >= 3 ? 1.5f : 0.0f;
+        const Image img = loop.render(cam, vertex_hook([&](std::uint32_t object, const Vertex& v, std::uint32_t) {
+            EXPECT_EQ(object, 1u);
+            return wave(v, t, throw_by);
+        }));
+        rebuilds += loop.last().rebuilt;
+        Mesh moved = sphere;
+        for (std::size_t i = 0; i < moved.positions.size(); ++i) {
+            const Vertex v = wave(Vertex{sphere.positions[i], sphere.normals[i], vec2(0.0f)}, t, throw_by);
+            moved.positions[i] = v.position;
+            moved.normals[i] = v.normal;
+        }
+        RenderScene fresh = two_object_scene(moved, ObjectKind::static_object);
+        fresh.lights = rs.lights;
+        const Image want = render_cpu(fresh.view(), cam, set);
+        ASSERT_EQ(img.pixels.size(), want.pixels.size());
+        EXPECT_EQ(std::memcmp(img.pixels.data(), want.pixels.data(), img.pixels.size() * sizeof(vec4)), 0)
+            << "frame " << f;
+        std::printf("[ info ] frame %d: vertex %.3f refit %.3f top %.3f render %.2f ms, growth %.3f, %s\n", f,
+                    loop.last().ms.vertex, loop.last().ms.refit, loop.last().ms.top, loop.last().ms.render,
+                    loop.last().worst_growth, loop.last().rebuilt ? "rebuilt" : "refitted");
+        EXPECT_GT(loop.last().render.rays.primary, 0u);
+    }
+    // the thrown sector breaks the neighbourhoods: the policy rebuilds once, then refits again
+    EXPECT_EQ(rebuilds, 1u);
+    EXPECT_EQ(rs.scene.objects()[0].mesh.positions, static_before);
+    ASSERT_EQ(rs.scene.objects()[0].bvh.nodes.size(), static_nodes.size());
+    EXPECT_EQ(std::memcmp(rs.scene.objects()[0].bvh.nodes.data(), static_nodes.data(),
+                          static_nodes.size() * sizeof(Node)),
+              0);
+}
+
+TEST(FrameLoop, MovedButNotUpdatedObjectsCannotBeTraced) {
+    Mesh sphere = make_icosphere(2);
+    RenderScene rs = two_object_scene(sphere, ObjectKind::dynamic);
+    rs.scene.write_vertices(1, [](const Vertex& v, std::uint32_t) { return wave(v, 1.0f); });
+    EXPECT_THROW(rs.scene.update_top_level(), std::logic_error);
+    EXPECT_THROW((void)rs.scene.intersect_closest(Ray{vec3(0.0f, 5.0f, 0.0f), 0.0f, vec3(0.0f, -1.0f, 0.0f), kInf}),
+                 std::logic_error);
+    EXPECT_THROW(rs.scene.write_vertices(0, [](const Vertex& v, std::uint32_t) { return v; }), std::logic_error);
+    rs.scene.update_object(1, TreeUpdate::refit);
+    EXPECT_NO_THROW(rs.scene.update_top_level());
+    const Ray down{vec3(0.3f, 5.0f, 0.2f), 0.0f, vec3(0.0f, -1.0f, 0.0f), kInf};
+    const Hit h = rs.scene.intersect_closest(down);
+    EXPECT_EQ(h.inst, 1u);  // the sphere sits above the torus at (0.3, 0.9, 0.2)
+    const Hit o = rs.scene.brute_force_closest(down);
+    EXPECT_EQ(h.prim, o.prim);
+    EXPECT_EQ(h.t, o.t);
+}
+
 // ---------------------------------------------------------------- `raykit render`
 
 namespace {

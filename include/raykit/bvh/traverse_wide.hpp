@@ -56,7 +56,7 @@ struct WideSlabRay {
     __m256 org8[3], inv8[3];
 #endif
 
-    explicit WideSlabRay(const Ray& r) noexcept {
+    RAYKIT_INLINE explicit WideSlabRay(const Ray& r) noexcept {
         const RayInv ri(r.dir);
         const float* o = &r.org.x;
         const float* v = &ri.inv.x;
@@ -148,7 +148,7 @@ struct WideSlabRay {
 };
 
 template <class Mode = ClosestHit, int W, class LeafFn, class Stats = std::nullptr_t>
-bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
+RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
     if (bvh.nodes.empty()) return false;
     const WideNodeT<W>* RAYKIT_RESTRICT nodes = bvh.nodes.data();
     const WideSlabRay wr(ray);

@@ -66,7 +66,7 @@ struct Watertight4 {
 #endif
     };
 
-    static RayData prepare(const Ray& r) noexcept {
+    RAYKIT_INLINE static RayData prepare(const Ray& r) noexcept {
         RayData d;
         d.s = Watertight::prepare(r);
         d.ox = 4 * d.s.kx;

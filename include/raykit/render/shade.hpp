@@ -501,18 +501,20 @@ SampleResult shade_impl(const ShadeScene& s, const ShadeSettings& set, const Ray
     using Kind = PathScratch::Kind;
     auto& stack = scratch.stack;
     stack.clear();
-    stack.push_back({camera_ray, vec3(1.0f), 0u, Kind::primary});
     vec3 L(0.0f);
-    while (!stack.empty()) {
-        const PathScratch::Item it = stack.back();
-        stack.pop_back();
+    // the camera ray is traced from where it is, not through the stack (a copy of a ray just
+    // stored stalls the ray setup's vector loads); children are popped in the increment
+    PathScratch::Item it{camera_ray, vec3(1.0f), 0u, Kind::primary};
+    const Ray* ray = &camera_ray;
+    for (bool more = true; more;
+         more = !stack.empty() && (it = stack.back(), stack.pop_back(), ray = &it.ray, true)) {
         if (it.kind == Kind::reflection) ++cnt.rays.reflection;
         if (it.kind == Kind::refraction) ++cnt.rays.refraction;
         const unsigned slot = bounce_slot(it.depth);
         if (it.kind != Kind::primary) ++cnt.bounce_rays[slot];
         std::uint64_t& bticks = cnt.times.bounce_ticks[slot];
         cnt.deepest = std::max(cnt.deepest, it.depth);
-        const Hit h = timed(tm, cnt.times.trace_ticks, bticks, [&] { return tr.closest(it.ray); });
+        const Hit h = timed(tm, cnt.times.trace_ticks, bticks, [&] { return tr.closest(*ray); });
         if (!h.valid()) {
             L += it.weight * set.background;
             continue;

@@ -100,6 +100,7 @@ struct BlockBvhT {
         for (const TriangleBlock4& b : blocks)
             for (int i = 0; i < 4; ++i)
                 if (b.prim[i] >= mesh.size()) throw std::invalid_argument("BlockBvh::refit: a block names a triangle outside the mesh");
+        if (blocks.size() < 4096) threads = 1;  // starting threads costs more than ~16k triangles take
         parallel_for(blocks.size(), threads, [&](std::size_t k) {
             for (int i = 0; i < 4; ++i) {
                 const std::uint32_t p = bl[k].prim[i];

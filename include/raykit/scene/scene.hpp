@@ -266,6 +266,9 @@ public:
         Mesh& m = o.mesh;
         o.moved = true;
         stale_ = true;
+        // below ~16k vertices a thread costs more to start than it saves (the goblin's 1.7k
+        // vertices skin in ~40 us on one thread; two threads took 0.1-4 ms on a busy machine)
+        if (o.rest.size() < kSerialVertices) threads = 1;
         parallel_for(o.rest.size(), threads, [&](std::size_t i) {
             const Vertex v = fn(static_cast<const Vertex&>(o.rest[i]), static_cast<std::uint32_t>(i));
             m.positions[i] = v.position;
@@ -383,9 +386,29 @@ public:
         stale_ = false;
     }
 
-    /// The top-level build used by update_top_level(): BinnedSahBuilder with
-    /// one instance per leaf by default.
+    /// Vertex stages of fewer vertices than this run on the calling thread.
+    static constexpr std::size_t kSerialVertices = 16384;
+
+    /// Scenes of at most this many instances get a top-level tree of one leaf.
+    static constexpr std::size_t kOneLeafTopLevel = 4;
+
+    /// The top-level build used by update_top_level(): one leaf holding every
+    /// instance in order when there are at most kOneLeafTopLevel (queries then
+    /// skip the top-level walk and try the instances' own trees in turn: on
+    /// the one-instance thesis scene the walk and its ray setup cost 20 % of
+    /// the camera rays' trace time), else BinnedSahBuilder with `cfg` (one
+    /// instance per leaf by default).
     static Bvh build_top_level(const std::vector<AABB>& world_boxes, const BinnedSahBuilder::Config& cfg) {
+        if (!world_boxes.empty() && world_boxes.size() <= kOneLeafTopLevel) {
+            Bvh one;
+            Node root;
+            for (const AABB& b : world_boxes) root.box.grow(b);
+            root.index = 0;
+            root.count = static_cast<std::uint32_t>(world_boxes.size());
+            one.nodes.push_back(root);
+            for (std::uint32_t i = 0; i < world_boxes.size(); ++i) one.prim_ids.push_back(i);
+            return one;
+        }
         std::vector<vec3> centers(world_boxes.size());
         for (std::size_t i = 0; i < world_boxes.size(); ++i)
             centers[i] = world_boxes[i].is_empty() ? vec3(std::numeric_limits<float>::quiet_NaN()) : world_boxes[i].center();
@@ -402,14 +425,23 @@ public:
     template <SceneTrees Trees = SceneTrees::blocks, class Keep = AcceptAll, class Stats = std::nullptr_t>
     Hit intersect_closest(const Ray& ray, const Keep& keep = {}, Stats stats = nullptr) const {
         require_fresh();
-        return closest_hit(top_, InstanceLeaves<Trees, Keep, Stats>{this, keep, stats}, ray);
+        const InstanceLeaves<Trees, Keep, Stats> leaves{this, keep, stats};
+        if (top_.nodes.size() == 1) {  // one leaf (kOneLeafTopLevel): no top-level walk
+            Hit hit;
+            float tm = ray.tmax;
+            leaves.closest({}, ray, 0, top_.nodes[0].count, tm, hit, keep, stats);
+            return hit;
+        }
+        return closest_hit(top_, leaves, ray);
     }
 
     /// True when any instance is hit in [tmin, tmax] (filtered by `keep` as above).
     template <SceneTrees Trees = SceneTrees::blocks, class Keep = AcceptAll>
     bool intersect_any(const Ray& ray, const Keep& keep = {}) const {
         require_fresh();
-        return any_hit(top_, InstanceLeaves<Trees, Keep, std::nullptr_t>{this, keep, nullptr}, ray);
+        const InstanceLeaves<Trees, Keep, std::nullptr_t> leaves{this, keep, nullptr};
+        if (top_.nodes.size() == 1) return leaves.any({}, ray, 0, top_.nodes[0].count, keep, nullptr);
+        return any_hit(top_, leaves, ray);
     }
 
     /// Oracle: every triangle of every instance, in object space (the same
@@ -481,16 +513,22 @@ private:
         struct RayData {};
         static RayData prepare(const Ray&) noexcept { return {}; }
 
-        template <class Fn>
-        RAYKIT_INLINE auto object_query(const SceneObject& o, std::uint32_t inst, Fn&& fn) const {
-            const auto run = [&](const auto& k) {
-                if constexpr (Trees == SceneTrees::blocks) return fn(o.blocks.tree, o.blocks.leaves(), k);
-                else return fn(o.bvh, indexed_leaves(o.mesh, o.bvh), k);
-            };
+        /// The filter of instance `inst`'s object: keep(inst, prim, u, v), or AcceptAll.
+        RAYKIT_INLINE auto keep_for(std::uint32_t inst) const noexcept {
             if constexpr (kFilters<Keep>)
-                return run([&](std::uint32_t p, float u, float v) { return keep(inst, p, u, v); });
+                return [this, inst](std::uint32_t p, float u, float v) { return keep(inst, p, u, v); };
             else
-                return run(AcceptAll{});
+                return AcceptAll{};
+        }
+        RAYKIT_INLINE Hit object_closest(const SceneObject& o, std::uint32_t inst, const Ray& r, float tmax) const {
+            if constexpr (Trees == SceneTrees::blocks)
+                return closest_hit_within(o.blocks.tree, o.blocks.leaves(), r, tmax, keep_for(inst), stats);
+            else
+                return closest_hit_within(o.bvh, indexed_leaves(o.mesh, o.bvh), r, tmax, keep_for(inst), stats);
+        }
+        RAYKIT_INLINE bool object_any(const SceneObject& o, std::uint32_t inst, const Ray& r) const {
+            if constexpr (Trees == SceneTrees::blocks) return any_hit(o.blocks.tree, o.blocks.leaves(), r, keep_for(inst));
+            else return any_hit(o.bvh, indexed_leaves(o.mesh, o.bvh), r, keep_for(inst));
         }
         template <class K, class S>
         bool closest(RayData, const Ray& ray, std::uint32_t first, std::uint32_t count, float& tm, Hit& best,
@@ -500,10 +538,9 @@ private:
                 const std::uint32_t inst = scene->top_.prim_ids[k];
                 const SceneInstance& in = scene->instances_[inst];
                 const SceneObject& o = scene->objects_[in.object];
-                const Ray r = object_ray(in, ray, tm);
-                Hit h = object_query(o, inst, [&](const auto& tree, const auto& leaves, const auto& kp) {
-                    return closest_hit(tree, leaves, r, kp, stats);
-                });
+                // an identity instance traces the world ray itself (a copy costs 20 % of a
+                // camera ray on the thesis scene: the ray setup's vector loads stall on it)
+                Hit h = in.identity ? object_closest(o, inst, ray, tm) : object_closest(o, inst, object_ray(in, ray, tm), tm);
                 if (!h.valid()) continue;
                 h.inst = inst;
                 if (h.closer_than(best)) {
@@ -520,10 +557,7 @@ private:
                 const std::uint32_t inst = scene->top_.prim_ids[k];
                 const SceneInstance& in = scene->instances_[inst];
                 const SceneObject& o = scene->objects_[in.object];
-                const Ray r = object_ray(in, ray, ray.tmax);
-                if (object_query(o, inst, [&](const auto& tree, const auto& leaves, const auto& kp) {
-                        return any_hit(tree, leaves, r, kp);
-                    }))
+                if (in.identity ? object_any(o, inst, ray) : object_any(o, inst, object_ray(in, ray, ray.tmax)))
                     return true;
             }
             return false;

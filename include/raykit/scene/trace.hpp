@@ -57,7 +57,7 @@ struct IndexedLeaves {
     const std::uint32_t* RAYKIT_RESTRICT ids;
 
     using RayData = typename Test::RayData;
-    static RayData prepare(const Ray& r) noexcept { return Test::prepare(r); }
+    RAYKIT_INLINE static RayData prepare(const Ray& r) noexcept { return Test::prepare(r); }
 
     /// Closest accepted hit among slots [first, first + count) within [tmin, tm]; shrinks tm.
     template <class Keep, class Stats>
@@ -102,7 +102,7 @@ struct BlockLeaves {
     const TriangleBlock4* RAYKIT_RESTRICT blocks;
 
     using RayData = Watertight4::RayData;
-    static RayData prepare(const Ray& r) noexcept { return Watertight4::prepare(r); }
+    RAYKIT_INLINE static RayData prepare(const Ray& r) noexcept { return Watertight4::prepare(r); }
 
     template <class Keep, class Stats>
     RAYKIT_INLINE bool closest(const RayData& rd, const Ray& ray, std::uint32_t first, std::uint32_t count,
@@ -146,13 +146,14 @@ struct BlockLeaves {
     }
 };
 
-/// Closest accepted hit of `ray` in `tree` (a Bvh or WideBvhT) over `leaves`.
+/// Closest accepted hit of `ray` in `tree` (a Bvh or WideBvhT) over `leaves`, within
+/// [ray.tmin, tmax] (tmax replaces ray.tmax: callers that narrow the interval pass the ray
+/// itself, not a copy, whose piecewise stores stall the vector loads of the ray setup).
 template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
-RAYKIT_INLINE Hit closest_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep = {},
-                              Stats stats = nullptr) {
+RAYKIT_INLINE Hit closest_hit_within(const Tree& tree, const Leaves& leaves, const Ray& ray, float tmax,
+                                     const Keep& keep = {}, Stats stats = nullptr) {
     const typename Leaves::RayData rd = Leaves::prepare(ray);
     Hit hit;
-    float tmax = ray.tmax;
     traverse<ClosestHit>(
         tree, ray, tmax,
         [&](std::uint32_t first, std::uint32_t count, float& tm) RAYKIT_LAMBDA_INLINE {
@@ -160,6 +161,13 @@ RAYKIT_INLINE Hit closest_hit(const Tree& tree, const Leaves& leaves, const Ray&
         },
         stats);
     return hit;
+}
+
+/// Closest accepted hit of `ray` in `tree` (a Bvh or WideBvhT) over `leaves`.
+template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
+RAYKIT_INLINE Hit closest_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep = {},
+                              Stats stats = nullptr) {
+    return closest_hit_within(tree, leaves, ray, ray.tmax, keep, stats);
 }
 
 /// True when `ray` has an accepted hit in [ray.tmin, ray.tmax].
