@@ -408,6 +408,7 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
     set.spp = a.spp;
     set.threads = a.threads;
     set.shade.max_depth = a.max_depth;
+    set.time_stages = true;  // the table splits trace and shade
     FrameLoop loop(rs, set);
 
 #if RAYKIT_CLI_HAVE_CL

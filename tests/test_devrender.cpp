@@ -23,6 +23,7 @@
 #define RAYKIT_CLI_HAVE_CL 1  // the --device cl branch of `raykit render`
 #endif
 #include "../examples/cli_render.hpp"
+#include "../examples/fog_hook.hpp"
 #include "raykit.hpp"
 #include "test_support.hpp"
 #include "test_device_support.hpp"
@@ -501,6 +502,34 @@ TEST(DeviceRender, HookThatEmitsNothingEndsAfterOneBounce) {
         ASSERT_EQ(vec3(img.pixels[i]), vec3(0.25f, 0.5f, 0.75f));
         ASSERT_EQ(img.pixels[i].w, cpu.pixels[i].w) << "coverage of pixel " << i;
     }
+}
+
+TEST(DeviceRender, UserFogHookMatchesItsCpuTwin) {
+    // examples/fog_hook.hpp: one hook type, its OpenCL source on the device, its C++ twin on the
+    // CPU (render_hook_cpu); the images agree as the built-in shaders' do.
+    RAYKIT_REQUIRE_DEVICE(dev);
+    TestScene ts;
+    rcl::DeviceRenderer r(dev, ts.rs.view());
+    for (unsigned spp : {1u, 4u})
+        for (const bool shadows : {true, false}) {
+            RenderSettings set;
+            set.spp = spp;
+            set.seed = 3;
+            set.shade.shadows = shadows;
+            set.shade.ambient = vec3(0.15f);
+            const FogHook::Params fog{0.12f, 0.6f, 0.65f, 0.7f};
+            rcl::DeviceRenderStats ds;
+            RenderStats cs;
+            const Image gpu = r.render_hook<FogHook>(ts.cam, set, fog, &ds);
+            const Image cpu = render_hook_cpu<FogHook>(ts.rs.view(), ts.cam, set, fog, &cs);
+            const Diff d = compare(cpu, gpu);
+            std::printf("[ info ] fog spp %u shadows %d: %zu of %zu pixels differ by more than 2/255, max %g\n", spp,
+                        int(shadows), d.bad, d.total, double(d.worst));
+            EXPECT_GE(d.fraction_ok(), 0.999) << "spp " << spp;
+            EXPECT_GE(distinct_colours(cpu), 4u);
+            EXPECT_EQ(ds.primary, cs.rays.primary);
+            EXPECT_EQ(ds.shadow, cs.rays.shadow);
+        }
 }
 
 TEST(DeviceRender, HookBuildErrorCarriesTheHooksLine) {

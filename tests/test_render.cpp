@@ -14,6 +14,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "../examples/cli_render.hpp"
+#include "../examples/fog_hook.hpp"
 #include "raykit.hpp"
 #include "raykit/io/obj.hpp"
 #include "raykit/render/render_cpu.hpp"
@@ -813,6 +814,78 @@ TEST(FrameLoop, MovedButNotUpdatedObjectsCannotBeTraced) {
     const Hit o = rs.scene.brute_force_closest(down);
     EXPECT_EQ(h.prim, o.prim);
     EXPECT_EQ(h.t, o.t);
+}
+
+// ---------------------------------------------------------------- CPU ray hooks
+
+TEST(RayHook, FogAtDensityZeroIsWhittedWithoutBounces) {
+    // The user hook of examples/fog_hook.hpp against the built-in Whitted shader: with no fog,
+    // no bounces and no specular material the two compute the same sum (in another order).
+    RenderScene rs = two_object_scene(make_icosphere(3), ObjectKind::static_object);
+    const Camera cam = frame_scene(rs.bounds(), 96, 72);
+    rs.lights.push_back(default_key_light(cam));
+    rs.lights.push_back(Light::directional(vec3(0.3f, -1.0f, 0.2f), vec3(0.4f)));
+    RenderSettings set;
+    set.spp = 2;
+    set.shade.max_depth = 0;
+    set.shade.background = vec3(0.7f, 0.75f, 0.8f);  // = the fog colour: misses agree too
+    RenderStats ws, fs;
+    const Image want = render_cpu(rs.view(), cam, set, &ws);
+    const Image got = render_hook_cpu<FogHook>(rs.view(), cam, set, FogHook::Params{0.0f, 0.7f, 0.75f, 0.8f}, &fs);
+    float worst = 0.0f;
+    std::size_t lit = 0;
+    for (std::size_t i = 0; i < want.pixels.size(); ++i) {
+        const vec4 d = glm::abs(want.pixels[i] - got.pixels[i]);
+        worst = std::max({worst, d.x, d.y, d.z, d.w});
+        lit += want.pixels[i].w > 0.0f;
+    }
+    std::printf("[ info ] fog(0) vs whitted: worst difference %g over %zu pixels (%zu covered); rays %llu / %llu\n",
+                worst, want.pixels.size(), lit, (unsigned long long)fs.rays.total(),
+                (unsigned long long)ws.rays.total());
+    EXPECT_LT(worst, 1e-5f);
+    EXPECT_GT(lit, want.pixels.size() / 20);
+    EXPECT_EQ(fs.rays.primary, ws.rays.primary);
+    EXPECT_EQ(fs.rays.shadow, ws.rays.shadow);  // the same shadow rays
+}
+
+TEST(RayHook, FogThickensWithDistanceAndIgnoresThreads) {
+    // Two equal spheres, one four times as far: with fog the far one is nearer the fog colour.
+    RenderScene rs;
+    const std::uint32_t ball = rs.add_object(make_icosphere(3));
+    rs.scene.add_instance(ball, glm::translate(mat4(1.0f), vec3(-1.2f, 0.0f, 0.0f)));
+    rs.scene.add_instance(ball, glm::scale(glm::translate(mat4(1.0f), vec3(4.0f, 0.0f, -12.0f)), vec3(4.0f)));
+    rs.scene.update_top_level();
+    Camera cam;
+    cam.position = vec3(0.0f, 0.0f, 6.0f);
+    cam.target = vec3(0.0f, 0.0f, 0.0f);
+    cam.width = 96;
+    cam.height = 48;
+    rs.lights.push_back(Light::point(vec3(0.0f, 10.0f, 10.0f)));
+    RenderSettings set;
+    set.jitter = false;
+    set.threads = 1;
+    const FogHook::Params fog{0.08f, 0.7f, 0.75f, 0.8f};
+    const Image a = render_hook_cpu<FogHook>(rs.view(), cam, set, fog);
+    set.threads = 2;
+    const Image b = render_hook_cpu<FogHook>(rs.view(), cam, set, fog);
+    EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(vec4)), 0);
+    // distance of each sphere's covered pixels' colour from the fog colour
+    const vec3 fc(fog.r, fog.g, fog.b);
+    double near_sum = 0.0, far_sum = 0.0;
+    int near_n = 0, far_n = 0;
+    for (std::uint32_t y = 0; y < cam.height; ++y)
+        for (std::uint32_t x = 0; x < cam.width; ++x) {
+            const vec4 p = a.at(x, y);
+            if (p.w == 0.0f) continue;
+            const double d = glm::length(vec3(p) - fc);
+            if (x < cam.width / 2) near_sum += d, ++near_n;
+            else far_sum += d, ++far_n;
+        }
+    ASSERT_GT(near_n, 50);
+    ASSERT_GT(far_n, 50);
+    std::printf("[ info ] mean distance from the fog colour: near sphere %.4f, far sphere %.4f\n", near_sum / near_n,
+                far_sum / far_n);
+    EXPECT_LT(far_sum / far_n, 0.6 * (near_sum / near_n));
 }
 
 // ---------------------------------------------------------------- `raykit render`

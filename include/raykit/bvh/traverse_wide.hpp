@@ -118,7 +118,7 @@ struct WideSlabRay {
 
     /// One box, with slab_test()'s decision (intersect/slab.hpp), from this
     /// ray's reciprocals (no second division per ray).
-    bool test_box(const AABB& b, float tmin, float tmax) const noexcept {
+    RAYKIT_INLINE bool test_box(const AABB& b, float tmin, float tmax) const noexcept {
         const float* lo = &b.min.x;
         const float* hi = &b.max.x;
         float t0 = tmin, t1 = tmax;

@@ -79,7 +79,7 @@ struct Watertight {
         int kx, ky, kz;
         float sx, sy, sz;
     };
-    static RayData prepare(const Ray& r) noexcept {
+    RAYKIT_INLINE static RayData prepare(const Ray& r) noexcept {
         RayData d;
         d.org = r.org;
         const vec3 ad = glm::abs(r.dir);

@@ -23,9 +23,11 @@
 //            config) in this stage too. FrameStats::rebuilt counts them.
 //   top      the top-level tree over the instances' world boxes (refitted while the instance
 //            count is unchanged, rebuilt otherwise).
-//   render   render_cpu over the scene (trace + shade); trace and shade split the render wall
-//            time in the ratio of the workers' traversal and shading thread times
-//            (RenderSettings::time_stages is forced on: a few percent of the render).
+//   render   render_cpu over the scene (trace + shade). With RenderSettings::time_stages, trace
+//            and shade split the render wall time in the ratio of the workers' traversal and
+//            shading thread times; without it (the default) trace = render and shade = 0: the
+//            two time-stamp reads per query cost 15-25 % of a goblin frame (bench_render, the
+//            animate variant with and without them).
 // The policy runs on the CPU twin; the device frame (cl/) follows the same stages.
 #pragma once
 
@@ -67,7 +69,6 @@ class FrameLoop {
 public:
     explicit FrameLoop(RenderScene& rs, const RenderSettings& settings = {}, RebuildPolicy policy = {})
         : rs_(&rs), set_(settings), policy_(policy) {
-        set_.time_stages = true;
         policies_.assign(rs.scene.objects().size(), policy);
         for (std::uint32_t o = 0; o < rs.scene.objects().size(); ++o)
             if (rs.scene.objects()[o].dynamic()) policies_[o].reset(sah_cost(rs.scene.objects()[o].bvh));

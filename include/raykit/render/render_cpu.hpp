@@ -37,7 +37,8 @@
 // frame), render (all tracing and shading), resolve (heat map). With time_stages the thread
 // time of the render stage is further split into trace (closest-hit), shadow (any-hit) and
 // shade (everything else, camera rays included), timed with stage_ticks() (the x86 time-stamp
-// counter, calibrated against steady_clock over the frame); the reads cost a few percent.
+// counter, calibrated against steady_clock over the frame); the reads cost 15-25 % of a frame
+// (bench_render, goblin at 1 thread: 91 ms with them, 75 without).
 // Rays per bounce (bounce_rays) are always counted; their traversal thread time
 // (bounce_thread_ms: closest- and any-hit queries of that bounce) only with time_stages.
 #pragma once
@@ -55,6 +56,7 @@
 
 #include "raykit/render/image.hpp"
 #include "raykit/render/material.hpp"
+#include "raykit/render/ray_hook.hpp"
 #include "raykit/render/shade.hpp"
 #include "raykit/scene/build_options.hpp"
 #include "raykit/scene/camera.hpp"
@@ -174,10 +176,12 @@ private:
     std::vector<std::uint32_t> perm_;
 };
 
-/// Renders `scene` through `cam` (see the header comment). Throws std::invalid_argument for
-/// spp == 0 or an invalid camera (Camera::frame()); exceptions from workers are rethrown.
-inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const RenderSettings& set,
-                        RenderStats* stats = nullptr) {
+namespace detail {
+
+/// render_cpu's body: `sample(ray, rng, pixel, counters, scratch)` shades one sample.
+template <class Scratch, class SampleFn>
+Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSettings& set, RenderStats* stats,
+                     SampleFn&& shade_sample) {
     using Clock = std::chrono::steady_clock;
     auto ms_since = [](Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); };
     if (set.spp == 0) throw std::invalid_argument("raykit::render_cpu: spp must be at least 1");
@@ -201,7 +205,7 @@ inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const Render
     const std::uint64_t ticks_render = set.time_stages ? stage_ticks() : 0;
     const float inv_spp = 1.0f / float(spp);
     parallel_chunks(H, H, threads, [&](std::size_t, std::size_t y0, std::size_t y1) {
-        PathScratch scratch;
+        Scratch scratch;
         PixelSampler sampler(spp, set.seed, set.jitter);
         for (std::size_t yy = y0; yy < y1; ++yy) {
             const auto y = static_cast<std::uint32_t>(yy);
@@ -216,7 +220,8 @@ inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const Render
                     SampleRng rng;
                     const vec2 j = sampler.sample(s, rng);
                     const Ray ray = frame.ray(x, y, j.x, j.y);
-                    const SampleResult r = shade_ray(scene, set.shade, ray, rng, cnt, scratch);
+                    const SampleResult r =
+                        shade_sample(ray, rng, static_cast<std::uint32_t>(std::uint64_t(y) * W + x), cnt, scratch);
                     sum += r.color;
                     cover += r.alpha;
                 }
@@ -264,6 +269,32 @@ inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const Render
         *stats = st;
     }
     return img;
+}
+
+}  // namespace detail
+
+/// Renders `scene` through `cam` (see the header comment). Throws std::invalid_argument for
+/// spp == 0 or an invalid camera (Camera::frame()); exceptions from workers are rethrown.
+inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const RenderSettings& set,
+                        RenderStats* stats = nullptr) {
+    return detail::render_samples<PathScratch>(
+        scene, cam, set, stats,
+        [&](const Ray& ray, SampleRng& rng, std::uint32_t, ShadeCounters& cnt, PathScratch& scratch) {
+            return shade_ray(scene, set.shade, ray, rng, cnt, scratch);
+        });
+}
+
+/// Renders with ray hook H on the CPU (render/ray_hook.hpp): the twin of the device's
+/// render_hook<H> (cl/render.hpp), same sampling, threads and statistics as render_cpu.
+template <class H>
+Image render_hook_cpu(const ShadeScene& scene, const Camera& cam, const RenderSettings& set,
+                      const typename H::Params& params, RenderStats* stats = nullptr) {
+    return detail::render_samples<std::vector<RayHookContext::Pending>>(
+        scene, cam, set, stats,
+        [&](const Ray& ray, SampleRng& rng, std::uint32_t pixel, ShadeCounters& cnt,
+            std::vector<RayHookContext::Pending>& scratch) {
+            return shade_hook<H>(scene, set.shade, ray, rng, pixel, params, cnt, scratch);
+        });
 }
 
 // ---------------------------------------------------------------- owning scene, framing, default light
