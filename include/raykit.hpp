@@ -25,7 +25,7 @@
 #include "raykit/bvh/sah.hpp"
 #include "raykit/bvh/validate.hpp"
 #include "raykit/bvh/binned_sah.hpp"
-#include "raykit/bvh/collapse.hpp"
+#include "raykit/bvh/bottom_up.hpp"
 #include "raykit/bvh/pairwise.hpp"
 #include "raykit/bvh/sortaxis.hpp"
 #include "raykit/bvh/ploc.hpp"

@@ -584,7 +584,7 @@ TEST(Builders, OptimizePassNeverRaisesTheSahCost) {
 
 /// On up to seven primitives one treelet holds them all, so the dynamic
 /// program must find the best tree there is: compared with an exhaustive
-/// search over every binary tree and every leaf collapse (the same rule and
+/// search over every binary tree and every leaf merge (the same rule and
 /// constants), written independently here.
 TEST(Builders, TreeletFindsTheOptimalTreeOverSevenPrimitives) {
     for (std::uint64_t seed = 1; seed <= 40; ++seed)
@@ -635,7 +635,7 @@ TEST(Builders, OptimizePassAfterADepthCut) {
             for (unsigned leaf : {1u, 8u})
                 for (const OptimizeConfig& oc : {OptimizeConfig{}, OptimizeConfig{0.25f, 3u, 1u}}) {
                     detail::MergeTree copy = t;
-                    const LeafCollapseConfig lc{leaf, 1.0f, 1.0f};
+                    const LeafMergeConfig lc{leaf, 1.0f, 1.0f};
                     detail::optimize_merge_tree(copy, r.boxes, r.centers, lc, oc, 2);
                     const Bvh bvh = detail::finish_bottom_up(copy, r.boxes, r.centers, lc, 2);
                     detail::MergeTree plain = t;

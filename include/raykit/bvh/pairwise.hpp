@@ -46,8 +46,8 @@
 // Sorting and the per-element passes (keys, gathers, the next level's boxes)
 // run on all threads; the result does not depend on the thread count.
 //
-// The merge tree then goes through the shared back end (bvh/collapse.hpp):
-// SAH leaf collapse into leaves of up to max_leaf_size primitives, the
+// The merge tree then goes through the shared back end (bvh/bottom_up.hpp):
+// SAH leaf merge into leaves of up to max_leaf_size primitives, the
 // RAYKIT_BVH_MAX_DEPTH bound (automatically met: each level halves the
 // element count) and pre-order output.
 #pragma once
@@ -63,9 +63,13 @@
 #include <utility>
 #include <vector>
 
-#include "raykit/bvh/collapse.hpp"
+#include "raykit/bvh/bottom_up.hpp"
+#include "raykit/bvh/morton.hpp"
 #include "raykit/bvh/node.hpp"
+#include "raykit/bvh/sanitize.hpp"
 #include "raykit/util/parallel.hpp"
+#include "raykit/util/radix_sort.hpp"
+#include "raykit/util/raw_array.hpp"
 
 namespace raykit {
 
@@ -76,10 +80,10 @@ struct PairwiseBuilder {
             area,    ///< surface area of the merged box
         };
         Metric metric = Metric::centre;
-        unsigned max_leaf_size = 8;      ///< leaf collapse: larger subtrees stay split (0 acts as 1)
-        float traversal_cost = 1.0f;     ///< Ct for the leaf collapse
-        float intersection_cost = 1.0f;  ///< Ci for the leaf collapse
-        unsigned leaf_block = 1;        ///< leaf collapse: primitives per SIMD test (LeafCollapseConfig)
+        unsigned max_leaf_size = 8;      ///< leaf merge: larger subtrees stay split (0 acts as 1)
+        float traversal_cost = 1.0f;     ///< Ct for the leaf merge
+        float intersection_cost = 1.0f;  ///< Ci for the leaf merge
+        unsigned leaf_block = 1;        ///< leaf merge: primitives per SIMD test (LeafMergeConfig)
         unsigned threads = 0;            ///< 0 = all hardware threads; at most kMaxThreads (else std::invalid_argument)
     };
 
@@ -435,7 +439,7 @@ private:
             std::swap(cur, next);
         }
         tree.root = n > 0 ? cur.node[0] : 0;
-        const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost, cfg.leaf_block};
+        const LeafMergeConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost, cfg.leaf_block};
         return detail::finish_bottom_up(tree, boxes, sc.view, lc, threads);
     }
 };

@@ -1,9 +1,9 @@
-// raykit/util/parallel.hpp — minimal fork/join helpers on std::thread.
+// raykit/util/parallel.hpp — fork/join helpers on std::thread, and the thread
+// team a bottom-up build keeps for its many short passes.
 //
-// raykit has no thread pool of its own: builders split work into a fixed number
-// of chunks that depends only on the input size and the thread count asked for,
-// so results are the same whatever the machine. `threads == 0` means
-// std::thread::hardware_concurrency().
+// Builders split work into a fixed number of chunks that depends only on the
+// input size and the thread count asked for, so results are the same whatever
+// the machine. `threads == 0` means std::thread::hardware_concurrency().
 //
 // Thread counts are bounded by kMaxThreads (1024). Entry points that take a
 // count from a caller (BuildOptions and every builder's Config) reject a larger
@@ -15,11 +15,14 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <cstddef>
+#include <cstdint>
 #include <exception>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 namespace raykit {
@@ -105,4 +108,142 @@ void fork_join(bool fork, A&& a, B&& b) {
     if (err) std::rethrow_exception(err);
 }
 
+namespace detail {
+
+/// A fixed set of threads kept for one build, for builders with many short
+/// parallel passes: starting and joining a std::thread costs ~50 µs, waking
+/// a waiting member a few µs. Work is split exactly as parallel_chunks
+/// splits it (chunk c of [0, n) on member c % size()), so results never
+/// depend on the member count. Members spin briefly, then sleep on an
+/// atomic wait. Not reentrant: one pass at a time, from the owning thread.
+class WorkTeam {
+public:
+    explicit WorkTeam(unsigned threads) : size_(std::max(1u, threads)), errors_(size_) {
+        helpers_.reserve(size_ - 1);
+        for (unsigned t = 1; t < size_; ++t) helpers_.emplace_back([this, t] { member_loop(t); });
+    }
+    WorkTeam(const WorkTeam&) = delete;
+    WorkTeam& operator=(const WorkTeam&) = delete;
+    ~WorkTeam() {
+        if (helpers_.empty()) return;
+        stop_ = true;
+        gen_.fetch_add(1, std::memory_order_release);
+        gen_.notify_all();
+        for (std::thread& th : helpers_) th.join();
+    }
+    unsigned size() const noexcept { return size_; }
+
+    /// fn(member) on every member at once (member 0 is the calling thread).
+    template <class Fn>
+    void each(Fn&& fn) {
+        if (size_ == 1) {
+            fn(0u);
+            return;
+        }
+        using F = std::remove_reference_t<Fn>;
+        ctx_ = const_cast<void*>(static_cast<const void*>(&fn));
+        call_ = [](void* c, unsigned member) { (*static_cast<F*>(c))(member); };
+        done_.store(0, std::memory_order_relaxed);
+        gen_.fetch_add(1, std::memory_order_release);
+        gen_.notify_all();
+        try {
+            fn(0u);
+        } catch (...) {
+            errors_[0] = std::current_exception();
+        }
+        const unsigned helpers = size_ - 1;
+        for (int spin = 0;; ++spin) {
+            const unsigned d = done_.load(std::memory_order_acquire);
+            if (d == helpers) break;
+            if (spin < kSpin) pause();
+            else done_.wait(d, std::memory_order_acquire);
+        }
+        for (std::exception_ptr& e : errors_)
+            if (e) {
+                std::exception_ptr x = e;
+                for (std::exception_ptr& f : errors_) f = nullptr;
+                std::rethrow_exception(x);
+            }
+    }
+
+    /// fn(c, lo, hi) for `chunks` contiguous chunks of [0, n) with the
+    /// boundaries of parallel_chunks; one chunk (or one member) runs inline.
+    template <class Fn>
+    void chunks(std::size_t n, std::size_t chunks, Fn&& fn) {
+        chunks = std::max<std::size_t>(1, std::min(chunks, n == 0 ? 1 : n));
+        auto bounds = [&](std::size_t c) { return n * c / chunks; };
+        if (chunks == 1 || size_ == 1) {
+            for (std::size_t c = 0; c < chunks; ++c) fn(c, bounds(c), bounds(c + 1));
+            return;
+        }
+        const std::size_t members = std::min<std::size_t>(size_, chunks);
+        each([&](unsigned t) {
+            for (std::size_t c = t; c < chunks && t < members; c += members) fn(c, bounds(c), bounds(c + 1));
+        });
+    }
+
+private:
+    static constexpr int kSpin = 4000;
+    static void pause() noexcept {
+#if defined(__x86_64__) || defined(__i386__)
+        __builtin_ia32_pause();
+#else
+        std::this_thread::yield();
+#endif
+    }
+    void member_loop(unsigned t) {
+        std::uint32_t seen = 0;
+        for (;;) {
+            for (int spin = 0;; ++spin) {
+                const std::uint32_t g = gen_.load(std::memory_order_acquire);
+                if (g != seen) {
+                    seen = g;
+                    break;
+                }
+                if (spin < kSpin) pause();
+                else gen_.wait(g, std::memory_order_acquire);
+            }
+            if (stop_) return;
+            try {
+                call_(ctx_, t);
+            } catch (...) {
+                errors_[t] = std::current_exception();
+            }
+            if (done_.fetch_add(1, std::memory_order_acq_rel) + 1 == size_ - 1) done_.notify_one();
+        }
+    }
+
+    unsigned size_;
+    std::vector<std::thread> helpers_;
+    std::vector<std::exception_ptr> errors_;
+    std::atomic<std::uint32_t> gen_{0};
+    std::atomic<unsigned> done_{0};
+    void (*call_)(void*, unsigned) = nullptr;
+    void* ctx_ = nullptr;
+    bool stop_ = false;  // written before a generation bump, read after it
+};
+
+/// Element count from which per-element passes run on several threads.
+inline constexpr std::size_t kMinParallelPass = 16384;
+
+/// Chunk count for a parallel pass over m elements: depends on m only.
+inline std::size_t pass_chunks(std::size_t m) noexcept {
+    return m < kMinParallelPass ? 1 : std::min<std::size_t>(64, m / (kMinParallelPass / 4));
+}
+
+/// fn(i) for i in [0, m): on `threads` threads when m is large enough to
+/// pay for starting them. For per-element work only (the result must not
+/// depend on the split).
+template <class Fn>
+void par_for(std::size_t m, unsigned threads, Fn&& fn) {
+    if (threads <= 1 || m < kMinParallelPass) {
+        for (std::size_t i = 0; i < m; ++i) fn(i);
+        return;
+    }
+    parallel_chunks(m, threads, threads, [&](std::size_t, std::size_t lo, std::size_t hi) {
+        for (std::size_t i = lo; i < hi; ++i) fn(i);
+    });
+}
+
+}  // namespace detail
 }  // namespace raykit
