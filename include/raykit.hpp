@@ -1,7 +1,7 @@
 // raykit.hpp — everything on the CPU side of raykit.
 //
 // Layers (each includes only the ones above it in this list):
-//   util/, math/     vectors, AABB, ray, hit, float utilities, fork/join
+//   util/, math/     vectors, AABB, ray, hit, float utilities, the executor, radix sort
 //   intersect/       slab test, triangle tests (Watertight default, MollerTrumbore, ThesisTest)
 //   bvh/             node layout, builders, SAH cost, validate, traverse, refit
 //   scene/           mesh, building a BVH over a mesh, closest/any-hit queries

@@ -239,8 +239,7 @@ void sweep_batches(const MergeTree& t, unsigned threads, Fn& node, WorkTeam* tea
             auto part = [&](std::size_t, std::size_t lo, std::size_t hi) {
                 for (std::size_t k = begin + lo; k < begin + hi; ++k) node(k);
             };
-            if (team) team->chunks(m, pass_chunks(m), part);
-            else parallel_chunks(m, pass_chunks(m), threads, part);
+            run_chunks(team, threads, m, pass_chunks(m), part);
         } else {
             for (std::size_t k = begin; k < end; ++k) node(k);
         }
@@ -369,8 +368,7 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
                 auto part = [&](std::size_t, std::size_t lo, std::size_t hi) {
                     for (std::size_t k = begin + lo; k < begin + hi; ++k) down(k);
                 };
-                if (team) team->chunks(m, pass_chunks(m), part);
-                else parallel_chunks(m, pass_chunks(m), threads, part);
+                run_chunks(team, threads, m, pass_chunks(m), part);
             } else {
                 for (std::size_t k = begin; k < end; ++k) down(k);
             }

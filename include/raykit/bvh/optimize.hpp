@@ -117,8 +117,7 @@ public:
             }
         };
         const std::size_t chunks = threads_ > 1 && n_ >= kMinParallelPass ? threads_ : 1;
-        if (team_) team_->chunks(n_, chunks, prim);
-        else parallel_chunks(n_, chunks, threads_, prim);
+        run_chunks(team_, threads_, n_, chunks, prim);
         root_ = t.root;
         parent_[root_] = kNone;
         auto init = [&](std::size_t v) {  // inner node v, children done
@@ -557,8 +556,7 @@ private:
                 std::vector<std::pair<std::uint32_t, bool>> stack;
                 for (std::size_t i = lo; i < hi; ++i) process_subtree(frontier[i], gamma, stack);
             };
-            if (team_) team_->chunks(frontier.size(), frontier.size(), part);
-            else parallel_chunks(frontier.size(), frontier.size(), threads_, part);
+            run_chunks(team_, threads_, frontier.size(), frontier.size(), part);
         } else {
             std::vector<std::pair<std::uint32_t, bool>> stack;
             for (const std::uint32_t f : frontier) process_subtree(f, gamma, stack);

@@ -209,7 +209,9 @@ private:
             // Morton sort of the centres (30-bit codes: the order only affects speed)
             const detail::MortonQuantizer mq(detail::finite_point_bounds(L.centre, threads));
             detail::RawArray<std::uint64_t> keys(m), scratch;
-            detail::par_for(m, threads, [&](std::size_t i) { keys[i] = std::uint64_t(mq.code30(L.centre[i])) << 32 | i; });
+            parallel_for(
+                m, threads, [&](std::size_t i) { keys[i] = std::uint64_t(mq.code30(L.centre[i])) << 32 | i; },
+                detail::kMinParallelPass);
             detail::radix_sort_words(keys, 32, 64, threads, scratch);
             scratch = {};
             elem.resize(m);
@@ -217,13 +219,13 @@ private:
             leaf_of.resize(m);
             if (area) pb.resize(m);
             else pc.resize(m);
-            detail::par_for(m, threads, [&](std::size_t s) {
+            parallel_for(m, threads, [&](std::size_t s) {
                 const auto e = static_cast<std::uint32_t>(keys[s]);
                 elem[s] = e;
                 pos[e] = static_cast<std::uint32_t>(s);
                 if (area) pb[s] = L.box[e];
                 else pc[s] = L.centre[e];
-            });
+            }, detail::kMinParallelPass);
             // Radix tree over the codes: a range splits where its highest
             // differing code bit changes (octree cells, so sibling boxes
             // barely overlap), equal codes in the middle, down to ≤ kBucket.
@@ -406,10 +408,10 @@ private:
         cur.centre.assign(sc.view.begin(), sc.view.end());
         cur.box.resize(n);
         cur.node.resize(n);
-        detail::par_for(n, threads, [&](std::size_t i) {
+        parallel_for(n, threads, [&](std::size_t i) {
             cur.box[i] = detail::working_box(boxes[i], sc[i]);
             cur.node[i] = static_cast<std::uint32_t>(i);
-        });
+        }, detail::kMinParallelPass);
         std::vector<Pair> pairs;
         while (cur.size() > 1) {
             pairs.clear();
@@ -422,14 +424,14 @@ private:
             next.centre.resize(m2);
             next.box.resize(m2);
             next.node.resize(m2);
-            detail::par_for(np, threads, [&](std::size_t t) {
+            parallel_for(np, threads, [&](std::size_t t) {
                 const Pair p = pairs[t];
                 const AABB b = merge(cur.box[p.a], cur.box[p.b]);
                 tree.set(base + t, cur.node[p.a], cur.node[p.b]);
                 next.box[t] = b;
                 next.centre[t] = detail::box_centre(b);
                 next.node[t] = n + base + static_cast<std::uint32_t>(t);
-            });
+            }, detail::kMinParallelPass);
             if (carried != kNone) {
                 next.centre[np] = cur.centre[carried];
                 next.box[np] = cur.box[carried];

@@ -67,9 +67,11 @@ inline SanitizedCenters sanitize_centers(std::span<const vec3> centers, unsigned
     if (bad) {
         s.copy.assign(centers.begin(), centers.end());
         const vec3 fill = s.bounds.is_empty() ? vec3(0.0f) : s.bounds.center();
-        par_for(s.copy.size(), threads, [&](std::size_t i) {
-            if (!is_finite(s.copy[i])) s.copy[i] = fill;
-        });
+        parallel_for(
+            s.copy.size(), threads, [&](std::size_t i) {
+                if (!is_finite(s.copy[i])) s.copy[i] = fill;
+            },
+            kMinParallelPass);
         s.view = s.copy;
         if (s.bounds.is_empty()) s.bounds = AABB::of_point(fill);
     }

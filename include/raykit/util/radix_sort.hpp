@@ -34,11 +34,11 @@ inline std::size_t sort_chunks(std::size_t m, unsigned threads) noexcept {
 }
 
 /// Stable LSD radix sort of (keys, vals) by the low `bits` bits of the keys,
-/// 11 bits per pass; passes where every key has the same digit are skipped.
-/// `run(n, chunks, fn)` runs the chunked passes (parallel_chunks or a
-/// WorkTeam, below).
-template <class Key, class Run>
-void radix_sort_with(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, std::size_t chunks, Run&& run) {
+/// 11 bits per pass, on a build's team; passes where every key has the same
+/// digit are skipped.
+template <class Key>
+void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, WorkTeam& team) {
+    const std::size_t chunks = sort_chunks(keys.size(), team.size());
     constexpr int kDigit = 11;
     constexpr std::size_t kBins = std::size_t(1) << kDigit;
     const std::size_t m = keys.size();
@@ -47,7 +47,7 @@ void radix_sort_with(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bit
     RawArray<std::uint32_t> v2(m);
     std::vector<std::uint32_t> hist(chunks * kBins);
     for (int shift = 0; shift < bits; shift += kDigit) {
-        run(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+        team.chunks(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
             std::uint32_t* h = hist.data() + c * kBins;
             std::fill(h, h + kBins, 0u);
             for (std::size_t i = lo; i < hi; ++i) ++h[(keys[i] >> shift) & (kBins - 1)];
@@ -64,7 +64,7 @@ void radix_sort_with(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bit
                 hist[c * kBins + b] = sum;
                 sum += h;
             }
-        run(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+        team.chunks(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
             std::uint32_t* h = hist.data() + c * kBins;
             for (std::size_t i = lo; i < hi; ++i) {
                 const std::uint32_t pos = h[(keys[i] >> shift) & (kBins - 1)]++;
@@ -77,28 +77,13 @@ void radix_sort_with(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bit
     }
 }
 
-/// radix_sort_with on up to `threads` fresh threads (parallel_chunks).
-template <class Key>
-void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, unsigned threads) {
-    radix_sort_with(keys, vals, bits, sort_chunks(keys.size(), threads),
-                    [threads](std::size_t n, std::size_t chunks, auto&& fn) { parallel_chunks(n, chunks, threads, fn); });
-}
-
-/// radix_sort_with on a build's WorkTeam.
-template <class Key>
-void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, WorkTeam& team) {
-    radix_sort_with(keys, vals, bits, sort_chunks(keys.size(), team.size()),
-                    [&team](std::size_t n, std::size_t chunks, auto&& fn) { team.chunks(n, chunks, fn); });
-}
-
 /// Stable LSD radix sort of 64-bit words by their bits [lo_bit, hi_bit)
 /// (typically a 32-bit key above a 32-bit payload), 11 bits per pass;
 /// passes where every word has the same digit are skipped. `scratch` may be
-/// reused between calls. `run(n, chunks, fn)` runs the chunked passes
-/// (parallel_chunks or a WorkTeam).
-template <class Run>
-void radix_sort_words_with(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, std::size_t chunks, Run&& run,
-                           RawArray<std::uint64_t>& scratch) {
+/// reused between calls. Runs on a build's team.
+inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, WorkTeam& team,
+                             RawArray<std::uint64_t>& scratch) {
+    const std::size_t chunks = sort_chunks(a.size(), team.size());
     constexpr int kDigit = 11;
     constexpr std::size_t kBins = std::size_t(1) << kDigit;
     const std::size_t m = a.size();
@@ -113,7 +98,7 @@ void radix_sort_words_with(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, s
     scratch.resize(m);
     std::vector<std::uint32_t> hist(chunks * kBins);
     for (int shift = lo_bit; shift < hi_bit; shift += kDigit) {
-        run(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+        team.chunks(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
             std::uint32_t* h = hist.data() + c * kBins;
             std::fill(h, h + kBins, 0u);
             for (std::size_t i = lo; i < hi; ++i) ++h[(a[i] >> shift) & (kBins - 1)];
@@ -129,7 +114,7 @@ void radix_sort_words_with(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, s
                 hist[c * kBins + b] = sum;
                 sum += h;
             }
-        run(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+        team.chunks(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
             std::uint32_t* h = hist.data() + c * kBins;
             const std::uint64_t* RAYKIT_RESTRICT src = a.data();
             std::uint64_t* RAYKIT_RESTRICT dst = scratch.data();
@@ -139,20 +124,12 @@ void radix_sort_words_with(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, s
     }
 }
 
-/// radix_sort_words_with on up to `threads` fresh threads (parallel_chunks).
+/// radix_sort_words on a team of its own: up to `threads` threads when the
+/// array is large enough to be split.
 inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, unsigned threads,
                              RawArray<std::uint64_t>& scratch) {
-    radix_sort_words_with(
-        a, lo_bit, hi_bit, sort_chunks(a.size(), threads),
-        [threads](std::size_t n, std::size_t chunks, auto&& fn) { parallel_chunks(n, chunks, threads, fn); }, scratch);
-}
-
-/// radix_sort_words_with on a build's WorkTeam.
-inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, WorkTeam& team,
-                             RawArray<std::uint64_t>& scratch) {
-    radix_sort_words_with(
-        a, lo_bit, hi_bit, sort_chunks(a.size(), team.size()),
-        [&team](std::size_t n, std::size_t chunks, auto&& fn) { team.chunks(n, chunks, fn); }, scratch);
+    WorkTeam team(sort_chunks(a.size(), threads) > 1 ? threads : 1u);
+    radix_sort_words(a, lo_bit, hi_bit, team, scratch);
 }
 
 }  // namespace raykit::detail
