@@ -15,7 +15,7 @@
 //      actually too deep (PLOC on chain-like inputs; pairwise and
 //      sort-by-axis halve the element count per level and never need it).
 //   2. Leaf merge, bottom-up over the real primitive boxes: a subtree of
-//      n ≤ max_leaf_size primitives becomes one leaf when
+//      n ≤ max_leaf_size primitives (LeafCost, bvh/sah.hpp) becomes one leaf when
 //        Ci·SA·n ≤ Ct·SA + cost(left) + cost(right)
 //      (its SAH cost, with the children's best costs; SA = half area).
 //      Merging subtrees into leaves only removes levels, so the depth bound
@@ -50,20 +50,6 @@
 
 namespace raykit {
 
-/// Leaf-merge settings shared by the bottom-up builders (each builder's
-/// Config carries the same fields with the same defaults).
-struct LeafMergeConfig {
-    unsigned max_leaf_size = 8;       ///< subtrees of more primitives are never merged into one leaf (0 acts as 1)
-    float traversal_cost = 1.0f;      ///< Ct, cost of visiting an inner node
-    float intersection_cost = 1.0f;   ///< Ci, cost of one ray/triangle test (of one block, below)
-    /// Primitives tested together: n of them cost Ci·ceil(n / leaf_block).
-    /// 1 for one-at-a-time tests, 4 for 4-triangle SIMD blocks (scene/block_bvh.hpp).
-    unsigned leaf_block = 1;
-
-    /// The SAH weight of n primitives in one leaf (bvh/sah.hpp).
-    float blocks(std::uint32_t n) const noexcept { return leaf_block_weight(n, leaf_block); }
-};
-
 namespace detail {
 
 /// What a parent needs from a finished subtree for the leaf merge.
@@ -83,19 +69,19 @@ struct MergeInfo {
 };
 
 /// The leaf-merge rule for a primitive (a one-primitive leaf)...
-inline SubtreeCost primitive_cost(const AABB& real_box, const LeafMergeConfig& cfg) noexcept {
+inline SubtreeCost primitive_cost(const AABB& real_box, const LeafCost& cfg) noexcept {
     return {1, 1, cfg.intersection_cost * real_box.half_area()};
 }
 /// ... and for an inner node with box `box` over subtrees a and b: a leaf
-/// when it holds at most max_leaf_size primitives and Ci·SA·n ≤ Ct·SA +
+/// when it holds at most leaf_limit() primitives and Ci·SA·n ≤ Ct·SA +
 /// cost(a) + cost(b).
 inline SubtreeCost node_cost(const AABB& box, const SubtreeCost& a, const SubtreeCost& b,
-                             const LeafMergeConfig& cfg) noexcept {
+                             const LeafCost& cfg) noexcept {
     const float sa = box.half_area();
     const std::uint32_t cnt = a.count + b.count;
-    const float split = cfg.traversal_cost * sa + (a.cost + b.cost);
-    const float leaf = cfg.intersection_cost * sa * cfg.blocks(cnt);
-    if (cnt <= std::max(1u, cfg.max_leaf_size) && leaf <= split) return {cnt, 1, leaf};
+    const float split = cfg.split_cost(sa, a.cost + b.cost);
+    const float leaf = cfg.leaf_cost(sa, cnt);
+    if (cnt <= cfg.leaf_limit() && leaf <= split) return {cnt, 1, leaf};
     return {cnt, 1 + a.out + b.out, split};
 }
 
@@ -251,7 +237,7 @@ void sweep_batches(const MergeTree& t, unsigned threads, Fn& node, WorkTeam* tea
 /// Turns a merge tree into the final Bvh (steps 2 and 3 above; step 1 first
 /// when the batch count does not already bound the height).
 inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span<const vec3> centers,
-                            const LeafMergeConfig& cfg, unsigned threads, WorkTeam* team = nullptr) {
+                            const LeafCost& cfg, unsigned threads, WorkTeam* team = nullptr) {
     Bvh bvh;
     const std::uint32_t n = t.prims;
     if (n == 0) return bvh;

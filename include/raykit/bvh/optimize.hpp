@@ -100,7 +100,7 @@ public:
     /// `in_order`: t is as a builder left it (batches, children first, every
     /// node reachable); else it is walked from the root.
     MergeTreeOptimizer(MergeTree& t, std::span<const AABB> boxes, std::span<const vec3> centers,
-                       const LeafMergeConfig& lc, unsigned threads, bool in_order, WorkTeam* team = nullptr)
+                       const LeafCost& lc, unsigned threads, bool in_order, WorkTeam* team = nullptr)
         : t_(t), lc_(lc), n_(t.prims), threads_(std::max(1u, threads)), team_(team), all_reachable_(in_order) {
         const std::size_t total = std::size_t(n_) + t.size();
         box_.resize(total);
@@ -360,9 +360,9 @@ private:
         const float sa = area(v);
         const std::uint32_t cnt = count_[k[0]] + count_[k[1]];
         count_[v] = cnt;
-        const float split = lc_.traversal_cost * sa + cost_[k[0]] + cost_[k[1]];
-        const float leaf = lc_.intersection_cost * sa * lc_.blocks(cnt);
-        cost_[v] = cnt <= std::max(1u, lc_.max_leaf_size) && leaf <= split ? leaf : split;
+        const float split = lc_.split_cost(sa, cost_[k[0]]) + cost_[k[1]];
+        const float leaf = lc_.leaf_cost(sa, cnt);
+        cost_[v] = cnt <= lc_.leaf_limit() && leaf <= split ? leaf : split;
     }
 
     /// For every subset s of the 7 treelet leaves, the subsets p that hold
@@ -419,7 +419,7 @@ private:
         std::array<AABB, 1 << kTreeletLeaves> sb;
         std::array<float, 1 << kTreeletLeaves> sa, copt;
         std::array<std::uint32_t, 1 << kTreeletLeaves> sc;
-        const std::uint32_t max_leaf = std::max(1u, lc_.max_leaf_size);
+        const std::uint32_t max_leaf = lc_.leaf_limit();
         for (int s = 1; s < S; ++s) {
             const int low = s & -s;
             if (s == low) {
@@ -446,8 +446,8 @@ private:
             }
             for (; i < np; ++i) b0 = std::min(b0, copt[P[i]] + copt[s ^ P[i]]);
             const float best = std::min(std::min(b0, b1), std::min(b2, b3));
-            const float split = lc_.traversal_cost * sa[s] + best;
-            const float leaf_cost = lc_.intersection_cost * sa[s] * lc_.blocks(sc[s]);
+            const float split = lc_.split_cost(sa[s], best);
+            const float leaf_cost = lc_.leaf_cost(sa[s], sc[s]);
             copt[s] = sc[s] <= max_leaf && leaf_cost <= split ? leaf_cost : split;
         }
         // the split of s that reaches copt (the first in table order)
@@ -566,7 +566,7 @@ private:
 
     static constexpr std::uint8_t kFresh = 1, kPending = 2;
     MergeTree& t_;
-    LeafMergeConfig lc_;
+    LeafCost lc_;
     std::uint32_t n_;
     unsigned threads_;
     WorkTeam* team_;
@@ -589,7 +589,7 @@ private:
 /// Runs the post-pass on a builder's merge tree (see the top of this file);
 /// afterwards finish_bottom_up takes the tree as usual.
 inline void optimize_merge_tree(MergeTree& t, std::span<const AABB> boxes, std::span<const vec3> centers,
-                                const LeafMergeConfig& lc, const OptimizeConfig& oc, unsigned threads,
+                                const LeafCost& lc, const OptimizeConfig& oc, unsigned threads,
                                 WorkTeam* team = nullptr) {
     if (!oc.enabled() || t.prims < 3) return;
     t.close_batch();

@@ -47,7 +47,7 @@
 // run on all threads; the result does not depend on the thread count.
 //
 // The merge tree then goes through the shared back end (bvh/bottom_up.hpp):
-// SAH leaf merge into leaves of up to max_leaf_size primitives, the
+// SAH leaf merge into leaves of up to leaf.max_leaf_size primitives, the
 // RAYKIT_BVH_MAX_DEPTH bound (automatically met: each level halves the
 // element count) and pre-order output.
 #pragma once
@@ -80,10 +80,7 @@ struct PairwiseBuilder {
             area,    ///< surface area of the merged box
         };
         Metric metric = Metric::centre;
-        unsigned max_leaf_size = 8;      ///< leaf merge: larger subtrees stay split (0 acts as 1)
-        float traversal_cost = 1.0f;     ///< Ct for the leaf merge
-        float intersection_cost = 1.0f;  ///< Ci for the leaf merge
-        unsigned leaf_block = 1;        ///< leaf merge: primitives per SIMD test (LeafMergeConfig)
+        LeafCost leaf;                   ///< the back end's leaf merge: max leaf size, Ct, Ci, leaf_block
         unsigned threads = 0;            ///< 0 = all hardware threads; at most kMaxThreads (else std::invalid_argument)
     };
 
@@ -395,7 +392,7 @@ private:
         if (boxes.size() != centers.size())
             throw std::invalid_argument("PairwiseBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("PairwiseBuilder: too many primitives");
-        check_leaf_block(cfg.leaf_block, "PairwiseBuilder");
+        check_leaf_block(cfg.leaf.leaf_block, "PairwiseBuilder");
         check_threads(cfg.threads, "PairwiseBuilder");
         const unsigned threads = resolve_threads(cfg.threads);
         const bool area = cfg.metric == Config::Metric::area;
@@ -441,8 +438,7 @@ private:
             std::swap(cur, next);
         }
         tree.root = n > 0 ? cur.node[0] : 0;
-        const LeafMergeConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost, cfg.leaf_block};
-        return detail::finish_bottom_up(tree, boxes, sc.view, lc, threads);
+        return detail::finish_bottom_up(tree, boxes, sc.view, cfg.leaf, threads);
     }
 };
 

@@ -45,7 +45,7 @@
 // the optional post-pass of bvh/optimize.hpp (off by default here), the depth
 // bound (a long run of mutual levels could pass RAYKIT_BVH_MAX_DEPTH; any
 // such subtree is rebuilt with median splits), SAH leaf merge
-// (max_leaf_size, traversal_cost, intersection_cost) and the pre-order
+// (Config::leaf) and the pre-order
 // output. Degenerate or NaN primitives are handled as in the other builders:
 // non-finite centroids move to the centre of the finite ones.
 //
@@ -107,10 +107,7 @@ struct SortAxisBuilder {
         Axis axis = Axis::morton;           ///< (thesis: x; see Quality above)
         Metric metric = Metric::area;       ///< (thesis: centre)
         Pairing pairing = Pairing::mutual;  ///< (thesis: greedy; see Quality above)
-        unsigned max_leaf_size = 8;         ///< leaf merge: larger subtrees stay split (0 acts as 1)
-        float traversal_cost = 1.0f;        ///< Ct for the leaf merge
-        float intersection_cost = 1.0f;     ///< Ci for the leaf merge
-        unsigned leaf_block = 1;        ///< leaf merge: primitives per SIMD test (LeafMergeConfig)
+        LeafCost leaf;                      ///< the back end's leaf merge: max leaf size, Ct, Ci, leaf_block
         unsigned threads = 0;               ///< 0 = all hardware threads; at most kMaxThreads (else std::invalid_argument)
         OptimizeConfig optimize = OptimizeConfig::off();  ///< post-pass (bvh/optimize.hpp)
     };
@@ -123,7 +120,7 @@ struct SortAxisBuilder {
             throw std::invalid_argument("SortAxisBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("SortAxisBuilder: too many primitives");
         check_threads(cfg.threads, "SortAxisBuilder");
-        check_leaf_block(cfg.leaf_block, "SortAxisBuilder");
+        check_leaf_block(cfg.leaf.leaf_block, "SortAxisBuilder");
         if (cfg.window < 1 || cfg.window > 4096)
             throw std::invalid_argument("SortAxisBuilder: window must be in [1, 4096]");
         const unsigned threads = resolve_threads(cfg.threads);
@@ -139,7 +136,7 @@ struct SortAxisBuilder {
         // the longest axis come from the primitives' centroid bounds.
         const KeyMaker key{cfg.axis == Config::Axis::morton, cfg.axis == Config::Axis::longest ? max_axis(sc.bounds.extent()) : 0,
                            detail::MortonQuantizer(sc.bounds)};
-        const LeafMergeConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost, cfg.leaf_block};
+        const LeafCost& lc = cfg.leaf;
         // The leaf-merge data of each new node are filled in while pairing;
         // they hold when every primitive box is real (finite, non-empty),
         // else finish_bottom_up recomputes them from the real boxes.
@@ -351,7 +348,7 @@ private:
         detail::RawArray<std::uint64_t>* keys_carried;
         detail::RawArray<std::uint64_t>* keys_new;
         const KeyMaker* key;
-        const LeafMergeConfig* lc;
+        const LeafCost* lc;
 
         /// Carries S[k] (sorted position k) as element t, the a-th carried one.
         void carry(const Level& S, std::size_t k, std::uint32_t t, std::uint32_t a) const {

@@ -131,8 +131,8 @@ struct BlockBvhT {
     /// 0.4-0.5x to 0.7-0.85x Embree's speed (README, bench_trace).
     static BinnedSahBuilder::Config sah_config(unsigned threads = 0) {
         BinnedSahBuilder::Config c;
-        c.leaf_block = 4;
-        c.max_leaf_size = 12;
+        c.leaf.leaf_block = 4;
+        c.leaf.max_leaf_size = 12;
         c.threads = threads;
         return c;
     }
