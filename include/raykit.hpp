@@ -4,7 +4,7 @@
 //   util/, math/     vectors, AABB, ray, hit, float utilities, the executor, radix sort
 //   intersect/       slab test, triangle tests (Watertight default, MollerTrumbore, ThesisTest)
 //   bvh/             node layout, builders, SAH cost, validate, traverse, refit
-//   scene/           mesh, building a BVH over a mesh, closest/any-hit queries
+//   scene/           mesh, skeleton and skin data, building a BVH over a mesh, closest/any-hit queries
 //   io/              OBJ/MTL and SMD loading, ParseError
 //   anim/            skeletons, keyframe interpolation, skinning
 // The OpenCL device path is separate: include raykit/cl.hpp.
@@ -35,6 +35,7 @@
 #include "raykit/bvh/wide.hpp"
 #include "raykit/bvh/traverse_wide.hpp"
 #include "raykit/scene/mesh.hpp"
+#include "raykit/scene/skeleton_data.hpp"
 #include "raykit/scene/build.hpp"
 #include "raykit/scene/trace.hpp"
 #include "raykit/scene/leaf_triangles.hpp"
