@@ -33,41 +33,55 @@ inline std::size_t sort_chunks(std::size_t m, unsigned threads) noexcept {
     return threads <= 1 || m < kMinParallelPass ? 1 : std::min<std::size_t>(64, 2 * std::size_t(threads));
 }
 
+/// Bits per radix-sort pass, and the bins they make.
+inline constexpr int kRadixDigit = 11;
+inline constexpr std::size_t kRadixBins = std::size_t(1) << kRadixDigit;
+
+/// One pass's histogram: digit(i) of every element i < m counted per chunk
+/// into hist (chunks x kRadixBins), then turned into each chunk's first
+/// output slot per digit (digits in order, chunks in order within a digit,
+/// so the pass is stable). Returns false, with hist left as counts, when
+/// every element has element 0's digit: the pass would move nothing.
+template <class Digit>
+bool radix_offsets(std::size_t m, std::size_t chunks, WorkTeam& team, std::vector<std::uint32_t>& hist,
+                   const Digit& digit) {
+    team.chunks(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+        std::uint32_t* h = hist.data() + c * kRadixBins;
+        std::fill(h, h + kRadixBins, 0u);
+        for (std::size_t i = lo; i < hi; ++i) ++h[digit(i)];
+    });
+    const std::size_t d0 = digit(0);
+    std::size_t same = 0;
+    for (std::size_t c = 0; c < chunks; ++c) same += hist[c * kRadixBins + d0];
+    if (same == m) return false;
+    std::uint32_t sum = 0;
+    for (std::size_t b = 0; b < kRadixBins; ++b)
+        for (std::size_t c = 0; c < chunks; ++c) {
+            const std::uint32_t h = hist[c * kRadixBins + b];
+            hist[c * kRadixBins + b] = sum;
+            sum += h;
+        }
+    return true;
+}
+
 /// Stable LSD radix sort of (keys, vals) by the low `bits` bits of the keys,
 /// 11 bits per pass, on a build's team; passes where every key has the same
 /// digit are skipped.
 template <class Key>
 void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, WorkTeam& team) {
     const std::size_t chunks = sort_chunks(keys.size(), team.size());
-    constexpr int kDigit = 11;
-    constexpr std::size_t kBins = std::size_t(1) << kDigit;
     const std::size_t m = keys.size();
     if (m < 2) return;
     RawArray<Key> k2(m);
     RawArray<std::uint32_t> v2(m);
-    std::vector<std::uint32_t> hist(chunks * kBins);
-    for (int shift = 0; shift < bits; shift += kDigit) {
+    std::vector<std::uint32_t> hist(chunks * kRadixBins);
+    for (int shift = 0; shift < bits; shift += kRadixDigit) {
+        auto digit = [&](std::size_t i) { return std::size_t(keys[i] >> shift) & (kRadixBins - 1); };
+        if (!radix_offsets(m, chunks, team, hist, digit)) continue;
         team.chunks(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
-            std::uint32_t* h = hist.data() + c * kBins;
-            std::fill(h, h + kBins, 0u);
-            for (std::size_t i = lo; i < hi; ++i) ++h[(keys[i] >> shift) & (kBins - 1)];
-        });
-        // skip a pass that would not move anything
-        const std::size_t d0 = (keys[0] >> shift) & (kBins - 1);
-        std::size_t same = 0;
-        for (std::size_t c = 0; c < chunks; ++c) same += hist[c * kBins + d0];
-        if (same == m) continue;
-        std::uint32_t sum = 0;
-        for (std::size_t b = 0; b < kBins; ++b)
-            for (std::size_t c = 0; c < chunks; ++c) {
-                const std::uint32_t h = hist[c * kBins + b];
-                hist[c * kBins + b] = sum;
-                sum += h;
-            }
-        team.chunks(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
-            std::uint32_t* h = hist.data() + c * kBins;
+            std::uint32_t* h = hist.data() + c * kRadixBins;
             for (std::size_t i = lo; i < hi; ++i) {
-                const std::uint32_t pos = h[(keys[i] >> shift) & (kBins - 1)]++;
+                const std::uint32_t pos = h[digit(i)]++;
                 k2[pos] = keys[i];
                 v2[pos] = vals[i];
             }
@@ -84,8 +98,6 @@ void radix_sort(RawArray<Key>& keys, RawArray<std::uint32_t>& vals, int bits, Wo
 inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit, WorkTeam& team,
                              RawArray<std::uint64_t>& scratch) {
     const std::size_t chunks = sort_chunks(a.size(), team.size());
-    constexpr int kDigit = 11;
-    constexpr std::size_t kBins = std::size_t(1) << kDigit;
     const std::size_t m = a.size();
     if (m < 2) return;
     if (m <= 512) {
@@ -96,29 +108,15 @@ inline void radix_sort_words(RawArray<std::uint64_t>& a, int lo_bit, int hi_bit,
         return;
     }
     scratch.resize(m);
-    std::vector<std::uint32_t> hist(chunks * kBins);
-    for (int shift = lo_bit; shift < hi_bit; shift += kDigit) {
+    std::vector<std::uint32_t> hist(chunks * kRadixBins);
+    for (int shift = lo_bit; shift < hi_bit; shift += kRadixDigit) {
+        if (!radix_offsets(m, chunks, team, hist, [&](std::size_t i) { return (a[i] >> shift) & (kRadixBins - 1); }))
+            continue;
         team.chunks(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
-            std::uint32_t* h = hist.data() + c * kBins;
-            std::fill(h, h + kBins, 0u);
-            for (std::size_t i = lo; i < hi; ++i) ++h[(a[i] >> shift) & (kBins - 1)];
-        });
-        const std::size_t d0 = (a[0] >> shift) & (kBins - 1);
-        std::size_t same = 0;
-        for (std::size_t c = 0; c < chunks; ++c) same += hist[c * kBins + d0];
-        if (same == m) continue;
-        std::uint32_t sum = 0;
-        for (std::size_t b = 0; b < kBins; ++b)
-            for (std::size_t c = 0; c < chunks; ++c) {
-                const std::uint32_t h = hist[c * kBins + b];
-                hist[c * kBins + b] = sum;
-                sum += h;
-            }
-        team.chunks(m, chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
-            std::uint32_t* h = hist.data() + c * kBins;
+            std::uint32_t* h = hist.data() + c * kRadixBins;
             const std::uint64_t* RAYKIT_RESTRICT src = a.data();
             std::uint64_t* RAYKIT_RESTRICT dst = scratch.data();
-            for (std::size_t i = lo; i < hi; ++i) dst[h[(src[i] >> shift) & (kBins - 1)]++] = src[i];
+            for (std::size_t i = lo; i < hi; ++i) dst[h[(src[i] >> shift) & (kRadixBins - 1)]++] = src[i];
         });
         a.swap(scratch);
     }
