@@ -9,7 +9,7 @@
 //     made with "threads=T". Counter: Mtris/s. (Embree's own BVH4/BVH8 layout: no SAH
 //     counter, its cost is not comparable with a binary tree's.)
 // sahcmp/<scene>/leaf:<L>/raykit
-//     BinnedSahBuilder::build(boxes, centers, {.max_leaf_size = L, .threads = 2}) on
+//     BinnedSahBuilder::build(boxes, centers, {.leaf = {.max_leaf_size = L}, .threads = 2}) on
 //     precomputed triangle boxes/centroids.
 // sahcmp/<scene>/leaf:<L>/embree_builder
 //     rtcBuildBVH on the same boxes: RTC_BUILD_QUALITY_MEDIUM, maxBranchingFactor 2,
@@ -70,7 +70,7 @@ void BM_sahcmp_raykit(benchmark::State& state, std::string scene_name, unsigned 
     const Scene* s = rkbench::scene_or_skip(state, scene_name);
     if (!s) return;
     raykit::BinnedSahBuilder::Config cfg;
-    cfg.max_leaf_size = leaf;
+    cfg.leaf.max_leaf_size = leaf;
     cfg.threads = 2;
     raykit::Bvh last = raykit::BinnedSahBuilder::build(s->refs.boxes, s->refs.centers, cfg);  // warm-up, untimed
     for (auto _ : state) {

@@ -395,7 +395,7 @@ inline int raykit_cli_render(int argc, char** argv, int first_arg) {
     } catch (const std::invalid_argument& e) {
         throw RaykitCliRenderUsageError(e.what());
     }
-    build.max_leaf_size = cr::count_or<unsigned>(p, "--leaf-size", 12, 1, std::numeric_limits<unsigned>::max());
+    build.leaf.max_leaf_size = cr::count_or<unsigned>(p, "--leaf-size", 12, 1, std::numeric_limits<unsigned>::max());
     build.threads = set.threads;
 
     // ---- every output writable, the scene a file, before any work

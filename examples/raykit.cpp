@@ -184,9 +184,9 @@ BuildOptions tree_options(const Args& a) {
         throw UsageError(e.what());
     }
     constexpr unsigned kMaxUnsigned = std::numeric_limits<unsigned>::max();
-    o.max_leaf_size = a.count<unsigned>("--leaf", 8, 1, kMaxUnsigned);
-    o.leaf_block = a.number<unsigned>("--leaf-block", 1);
-    if (!valid_leaf_block(o.leaf_block)) throw UsageError("--leaf-block must be 1, 2, 4, 8 or 16");
+    o.leaf.max_leaf_size = a.count<unsigned>("--leaf", 8, 1, kMaxUnsigned);
+    o.leaf.leaf_block = a.number<unsigned>("--leaf-block", 1);
+    if (!valid_leaf_block(o.leaf.leaf_block)) throw UsageError("--leaf-block must be 1, 2, 4, 8 or 16");
     o.threads = a.count<unsigned>("--threads", 0, 0, kMaxThreads);
     o.window = a.count<unsigned>("--window", o.window, 1, 4096);
     o.radius = a.count<unsigned>("--radius", o.radius, 1, 1024);
@@ -235,15 +235,15 @@ int cmd_info(int argc, char** argv) {
             "\"settings\": \"%s\", \"max_leaf_size\": %u, \"leaf_block\": %u, \"nodes\": %zu, \"leaves\": %zu, \"depth\": %d, "
             "\"sah_cost\": %.6f, \"build_ms\": %.3f, \"memory_bytes\": %zu}\n",
             a.pos[0].c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(),
-            BuildOptions::name(t.builder), describe(t).c_str(), t.max_leaf_size, t.leaf_block, bvh.nodes.size(), bvh.leaf_count(),
-            bvh.depth(), cost, ms, bvh.memory_bytes());
+            BuildOptions::name(t.builder), describe(t).c_str(), t.leaf.max_leaf_size, t.leaf.leaf_block, bvh.nodes.size(),
+            bvh.leaf_count(), bvh.depth(), cost, ms, bvh.memory_bytes());
     } else {
         std::printf("file        %s\ntriangles   %zu\nvertices    %zu\nmaterials   %zu\nbuilder     %s (max leaf %u)\n"
                     "nodes       %zu\nleaves      %zu\ndepth       %d\nSAH cost    %.4f\nbuild       %.2f ms\n"
                     "memory      %zu bytes\n",
                     a.pos[0].c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(),
-                    describe(t).c_str(), t.max_leaf_size, bvh.nodes.size(), bvh.leaf_count(), bvh.depth(), cost, ms,
-                    bvh.memory_bytes());
+                    describe(t).c_str(), t.leaf.max_leaf_size, bvh.nodes.size(), bvh.leaf_count(), bvh.depth(), cost,
+                    ms, bvh.memory_bytes());
     }
     return 0;
 }

@@ -1,10 +1,10 @@
 // raykit.hpp — everything on the CPU side of raykit.
 //
 // Layers (each includes only the ones above it in this list):
-//   util/, math/     vectors, AABB, ray, hit, float utilities, fork/join
+//   util/, math/     vectors, AABB, ray, hit, float utilities, the executor, radix sort
 //   intersect/       slab test, triangle tests (Watertight default, MollerTrumbore, ThesisTest)
 //   bvh/             node layout, builders, SAH cost, validate, traverse, refit
-//   scene/           mesh, building a BVH over a mesh, closest/any-hit queries
+//   scene/           mesh, skeleton and skin data, building a BVH over a mesh, closest/any-hit queries
 //   io/              OBJ/MTL and SMD loading, ParseError
 //   anim/            skeletons, keyframe interpolation, skinning, the skinning vertex hook
 //   render/          materials, textures, images, shaders, the CPU renderer, the frame loop
@@ -26,7 +26,7 @@
 #include "raykit/bvh/sah.hpp"
 #include "raykit/bvh/validate.hpp"
 #include "raykit/bvh/binned_sah.hpp"
-#include "raykit/bvh/collapse.hpp"
+#include "raykit/bvh/bottom_up.hpp"
 #include "raykit/bvh/pairwise.hpp"
 #include "raykit/bvh/sortaxis.hpp"
 #include "raykit/bvh/ploc.hpp"
@@ -36,6 +36,7 @@
 #include "raykit/bvh/wide.hpp"
 #include "raykit/bvh/traverse_wide.hpp"
 #include "raykit/scene/mesh.hpp"
+#include "raykit/scene/skeleton_data.hpp"
 #include "raykit/scene/build.hpp"
 #include "raykit/scene/trace.hpp"
 #include "raykit/scene/block_bvh.hpp"

@@ -125,8 +125,8 @@ TEST(BlockBvh, BuiltForBlocksFillsThemAndMatchesBruteForce) {
         BuildOptions plain;
         plain.builder = builder;
         BuildOptions blocky = plain;
-        blocky.leaf_block = 4;
-        blocky.max_leaf_size = 12;
+        blocky.leaf.leaf_block = 4;
+        blocky.leaf.max_leaf_size = 12;
         const Bvh a = build_bvh(refs.boxes, refs.centers, plain);
         const Bvh b = build_bvh(refs.boxes, refs.centers, blocky);
         EXPECT_EQ(validate(b, refs.boxes), "");
@@ -158,7 +158,7 @@ TEST(BlockBvh, BuildersRejectABadLeafBlock) {
         for (unsigned lb : {0u, 3u, 32u}) {
             BuildOptions o;
             o.builder = builder;
-            o.leaf_block = lb;
+            o.leaf.leaf_block = lb;
             EXPECT_THROW(build_bvh(refs.boxes, refs.centers, o), std::invalid_argument)
                 << BuildOptions::name(builder) << " leaf_block " << lb;
         }
@@ -174,8 +174,8 @@ TEST(BlockBvh, EmptyTinyAndLeafRootTrees) {
     for (std::size_t n : {1u, 3u, 5u, 9u}) {
         const Mesh m = make_random_soup(n, 40 + n, 0.5f);
         BinnedSahBuilder::Config c;
-        c.max_leaf_size = 16;  // small soups become one leaf: the root is a leaf of n triangles
-        c.leaf_block = 4;
+        c.leaf.max_leaf_size = 16;  // small soups become one leaf: the root is a leaf of n triangles
+        c.leaf.leaf_block = 4;
         const Bvh bvh = build_bvh<BinnedSahBuilder>(m, c);
         const BlockBvh8 b = BlockBvh8::make(m, bvh);
         const BlockBvh2 b2 = BlockBvh2::make(m, bvh);
@@ -208,8 +208,8 @@ TEST(BlockBvh, RealMeshesMatchBruteForce) {
     if (!std::filesystem::exists(bunny)) GTEST_SKIP() << bunny << " not present";
     const Mesh m = load_obj(bunny);
     BuildOptions o;
-    o.leaf_block = 4;
-    o.max_leaf_size = 12;
+    o.leaf.leaf_block = 4;
+    o.leaf.max_leaf_size = 12;
     const BlockBvh8 b = BlockBvh8::make(m, build_bvh(MeshView(m), o));
     std::size_t bad = 0;
     const std::vector<Ray> rays = raykit::test::random_rays(m, 400, 5);

@@ -58,7 +58,7 @@ std::vector<Setting> optimized_settings() {
                                             unsigned leaf) {
                      SortAxisBuilder::Config cfg;
                      cfg.threads = threads;
-                     cfg.max_leaf_size = leaf;
+                     cfg.leaf.max_leaf_size = leaf;
                      cfg.optimize = OptimizeConfig{};
                      return SortAxisBuilder::build(b, c, cfg);
                  }});
@@ -70,7 +70,7 @@ std::vector<Setting> optimized_settings() {
                      cfg.pairing = SP::greedy;
                      cfg.window = 6;
                      cfg.threads = threads;
-                     cfg.max_leaf_size = leaf;
+                     cfg.leaf.max_leaf_size = leaf;
                      cfg.optimize = OptimizeConfig{};
                      return SortAxisBuilder::build(b, c, cfg);
                  }});
@@ -79,7 +79,7 @@ std::vector<Setting> optimized_settings() {
                      PlocBuilder::Config cfg;
                      cfg.radius = 8;
                      cfg.threads = threads;
-                     cfg.max_leaf_size = leaf;
+                     cfg.leaf.max_leaf_size = leaf;
                      cfg.optimize = {0.25f, 3u, 1u};
                      return PlocBuilder::build(b, c, cfg);
                  }});
@@ -95,7 +95,7 @@ std::vector<Setting> all_settings() {
                          PairwiseBuilder::Config cfg;
                          cfg.metric = metric;
                          cfg.threads = threads;
-                         cfg.max_leaf_size = leaf;
+                         cfg.leaf.max_leaf_size = leaf;
                          return PairwiseBuilder::build(b, c, cfg);
                      }});
     using SA = SortAxisBuilder::Config::Axis;
@@ -117,7 +117,7 @@ std::vector<Setting> all_settings() {
                                      cfg.pairing = pairing;
                                      cfg.window = w;
                                      cfg.threads = threads;
-                                     cfg.max_leaf_size = leaf;
+                                     cfg.leaf.max_leaf_size = leaf;
                                      return SortAxisBuilder::build(b, c, cfg);
                                  }});
                 }
@@ -128,7 +128,7 @@ std::vector<Setting> all_settings() {
                              PlocBuilder::Config cfg;
                              cfg.radius = r;
                              cfg.threads = threads;
-                             cfg.max_leaf_size = leaf;
+                             cfg.leaf.max_leaf_size = leaf;
                              if (!opt) cfg.optimize = OptimizeConfig::off();
                              return PlocBuilder::build(b, c, cfg);
                          }});
@@ -142,19 +142,19 @@ std::vector<Setting> default_settings() {
         {"pairwise", [](std::span<const AABB> b, std::span<const vec3> c, unsigned threads, unsigned leaf) {
              PairwiseBuilder::Config cfg;
              cfg.threads = threads;
-             cfg.max_leaf_size = leaf;
+             cfg.leaf.max_leaf_size = leaf;
              return PairwiseBuilder::build(b, c, cfg);
          }},
         {"sortaxis", [](std::span<const AABB> b, std::span<const vec3> c, unsigned threads, unsigned leaf) {
              SortAxisBuilder::Config cfg;
              cfg.threads = threads;
-             cfg.max_leaf_size = leaf;
+             cfg.leaf.max_leaf_size = leaf;
              return SortAxisBuilder::build(b, c, cfg);
          }},
         {"ploc", [](std::span<const AABB> b, std::span<const vec3> c, unsigned threads, unsigned leaf) {
              PlocBuilder::Config cfg;
              cfg.threads = threads;
-             cfg.max_leaf_size = leaf;
+             cfg.leaf.max_leaf_size = leaf;
              return PlocBuilder::build(b, c, cfg);
          }},
     };
@@ -339,7 +339,7 @@ TEST(Builders, PairwiseEqualsTheQuadraticReference) {
             for (unsigned leaf : {1u, 8u}) {
                 PairwiseBuilder::Config cfg;
                 cfg.metric = metric;
-                cfg.max_leaf_size = leaf;
+                cfg.leaf.max_leaf_size = leaf;
                 const Bvh fast = PairwiseBuilder::build(r.boxes, r.centers, cfg);
                 const Bvh ref = PairwiseBuilder::build_reference(r.boxes, r.centers, cfg);
                 EXPECT_TRUE(same_tree(fast, ref)) << name << ", metric " << (metric == PM::centre ? "centre" : "area")
@@ -553,7 +553,7 @@ TEST(Builders, OptimizePassNeverRaisesTheSahCost) {
         for (unsigned leaf : {1u, 4u, 8u})
             for (const OptimizeConfig& oc : configs) {
                 PlocBuilder::Config p;
-                p.max_leaf_size = leaf;
+                p.leaf.max_leaf_size = leaf;
                 p.optimize = OptimizeConfig::off();
                 const double before = sah_cost(PlocBuilder::build(r.boxes, r.centers, p));
                 p.optimize = oc;
@@ -562,7 +562,7 @@ TEST(Builders, OptimizePassNeverRaisesTheSahCost) {
                 EXPECT_EQ(validate(after, r.boxes), "") << name;
                 for (SP pairing : {SP::greedy, SP::mutual}) {
                     SortAxisBuilder::Config c;
-                    c.max_leaf_size = leaf;
+                    c.leaf.max_leaf_size = leaf;
                     c.pairing = pairing;
                     c.axis = pairing == SP::greedy ? SA::x : SA::morton;
                     const double b0 = sah_cost(SortAxisBuilder::build(r.boxes, r.centers, c));
@@ -584,7 +584,7 @@ TEST(Builders, OptimizePassNeverRaisesTheSahCost) {
 
 /// On up to seven primitives one treelet holds them all, so the dynamic
 /// program must find the best tree there is: compared with an exhaustive
-/// search over every binary tree and every leaf collapse (the same rule and
+/// search over every binary tree and every leaf merge (the same rule and
 /// constants), written independently here.
 TEST(Builders, TreeletFindsTheOptimalTreeOverSevenPrimitives) {
     for (std::uint64_t seed = 1; seed <= 40; ++seed)
@@ -615,7 +615,7 @@ TEST(Builders, TreeletFindsTheOptimalTreeOverSevenPrimitives) {
                 }
                 const double optimum = best[full] / box[full].half_area();
                 PlocBuilder::Config c;
-                c.max_leaf_size = leaf;
+                c.leaf.max_leaf_size = leaf;
                 c.optimize = {0.0f, 1u, 1u};
                 const Bvh bvh = PlocBuilder::build(r.boxes, r.centers, c);
                 EXPECT_NEAR(sah_cost(bvh), optimum, 1e-5 * optimum) << n << " primitives, seed " << seed << ", leaf " << leaf;
@@ -635,7 +635,7 @@ TEST(Builders, OptimizePassAfterADepthCut) {
             for (unsigned leaf : {1u, 8u})
                 for (const OptimizeConfig& oc : {OptimizeConfig{}, OptimizeConfig{0.25f, 3u, 1u}}) {
                     detail::MergeTree copy = t;
-                    const LeafCollapseConfig lc{leaf, 1.0f, 1.0f};
+                    const LeafCost lc{leaf, 1.0f, 1.0f};
                     detail::optimize_merge_tree(copy, r.boxes, r.centers, lc, oc, 2);
                     const Bvh bvh = detail::finish_bottom_up(copy, r.boxes, r.centers, lc, 2);
                     detail::MergeTree plain = t;
@@ -665,7 +665,7 @@ TEST(Builders, MutualPairingSplitsTiesEvenly) {
         for (auto metric : {SortAxisBuilder::Config::Metric::centre, SortAxisBuilder::Config::Metric::area}) {
             SortAxisBuilder::Config c;
             c.metric = metric;
-            c.max_leaf_size = 1;
+            c.leaf.max_leaf_size = 1;
             const Bvh bvh = SortAxisBuilder::build(r.boxes, r.centers, c);
             EXPECT_EQ(validate(bvh, r.boxes), "");
             EXPECT_LE(bvh.depth(), 16) << (tris == &same ? "identical" : "grid");  // 4096 = 2^12

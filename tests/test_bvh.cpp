@@ -77,7 +77,7 @@ std::size_t expect_matches_brute_force(const Mesh& m, const Bvh& bvh, const std:
 
 Bvh build(const Mesh& m, unsigned leaf = 8, unsigned threads = 0) {
     BinnedSahBuilder::Config c;
-    c.max_leaf_size = leaf;
+    c.leaf.max_leaf_size = leaf;
     c.threads = threads;
     return build_bvh<BinnedSahBuilder>(m, c);
 }
@@ -310,7 +310,7 @@ TEST(Bvh, BinnedSahCostIsNearASweepSahReference) {
     // Reference: the same mesh with 256 bins; 32 bins must be within 2 %.
     const Mesh m = make_bumpy_torus(50000);
     BinnedSahBuilder::Config c;
-    c.max_leaf_size = 4;
+    c.leaf.max_leaf_size = 4;
     const double c32 = sah_cost(build_bvh<BinnedSahBuilder>(m, c));
     c.bins = 256;
     const double c256 = sah_cost(build_bvh<BinnedSahBuilder>(m, c));

@@ -66,7 +66,7 @@ std::vector<Ray> vertex_edge_rays(const Mesh& m, const vec3& center, float scale
 
 Bvh build(const Mesh& m, unsigned leaf = 8) {
     BinnedSahBuilder::Config c;
-    c.max_leaf_size = leaf;
+    c.leaf.max_leaf_size = leaf;
     return build_bvh<BinnedSahBuilder>(m, c);
 }
 
@@ -460,7 +460,7 @@ Scene make_test_scene(bool with_dynamic, std::size_t torus_tris = 4000) {
     if (with_dynamic) {
         const std::uint32_t soup = s.add_object(make_random_soup(1500, 11, 0.1f), ObjectKind::dynamic);
         const std::uint32_t cloth = s.add_object(make_bumpy_torus(2000, 0.05f), ObjectKind::dynamic,
-                                                 BinnedSahBuilder::Config{.max_leaf_size = 2});
+                                                 BinnedSahBuilder::Config{.leaf = {.max_leaf_size = 2}});
         s.add_instance(soup, transform_of(0.2f, {0, 0, 1}, 2.0f, {0.5f, 1.5f, -1.0f}));
         s.add_instance(cloth, transform_of(0.0f, {0, 0, 1}, 1.0f, {0.0f, 0.0f, 2.0f}));
         s.add_instance(cloth, transform_of(2.0f, {1, 1, 0}, 0.7f, {-2.0f, -2.0f, -1.5f}));
@@ -668,9 +668,9 @@ TEST(ClRefit, LevelWiseAndOnePassAreBitIdenticalToCpu) {
     Scene s;
     std::vector<std::uint32_t> dyn;
     dyn.push_back(s.add_object(make_random_soup(1, 1), ObjectKind::dynamic));  // a single leaf
-    dyn.push_back(s.add_object(make_random_soup(700, 2, 0.2f), ObjectKind::dynamic, {.max_leaf_size = 1}));
+    dyn.push_back(s.add_object(make_random_soup(700, 2, 0.2f), ObjectKind::dynamic, {.leaf = {.max_leaf_size = 1}}));
     dyn.push_back(s.add_object(make_bumpy_torus(5000), ObjectKind::dynamic));
-    dyn.push_back(s.add_object(make_icosphere(3), ObjectKind::dynamic, {.max_leaf_size = 4}));
+    dyn.push_back(s.add_object(make_icosphere(3), ObjectKind::dynamic, {.leaf = {.max_leaf_size = 4}}));
     s.add_object(make_icosphere(1));  // static, in between
     for (std::uint32_t o = 0; o < s.objects().size(); ++o) s.add_instance(o);
     s.update_top_level();

@@ -45,6 +45,7 @@
 
 #include "raykit/io/smd.hpp"
 #include "raykit/math/types.hpp"
+#include "raykit/scene/skeleton_data.hpp"
 
 namespace raykit {
 

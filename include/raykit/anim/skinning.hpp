@@ -62,8 +62,8 @@
 
 #include "raykit/anim/skeleton.hpp"
 #include "raykit/config.hpp"
-#include "raykit/io/smd.hpp"
 #include "raykit/math/types.hpp"
+#include "raykit/scene/skeleton_data.hpp"
 #include "raykit/util/parallel.hpp"
 
 namespace raykit {

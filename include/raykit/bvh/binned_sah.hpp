@@ -1,13 +1,13 @@
 // raykit/bvh/binned_sah.hpp — top-down binned SAH builder (the quality reference).
 //
-//   Bvh bvh = BinnedSahBuilder::build(prim_boxes, prim_centers, {.max_leaf_size = 4});
+//   Bvh bvh = BinnedSahBuilder::build(prim_boxes, prim_centers, {.leaf = {.max_leaf_size = 4}});
 //
 // Each node bins primitive centroids into `bins` buckets on all three axes
 // (nodes of at most 16 primitives instead sort them on each axis and try all
 // n-1 splits exactly), sweeps the buckets for the split of least SAH cost
 //   Ct·SA(node) + Ci·(SA(L)·|L| + SA(R)·|R|)
 // and makes a leaf instead when that is cheaper than Ci·SA(node)·|node| and the
-// node holds at most `max_leaf_size` primitives. With Config::leaf_block = B,
+// node holds at most `leaf.max_leaf_size` primitives. With leaf.leaf_block = B,
 // every |set| above counts ceil(|set| / B): the cost of SIMD leaf tests. Coincident centroids fall back
 // to a split by index; below kMedianDepth (bvh/depth.hpp) splits are medians.
 //
@@ -40,14 +40,7 @@ struct BinnedSahBuilder {
     struct Config {
         unsigned bins = 32;                     ///< buckets per axis (2..256)
         unsigned min_leaf_size = 1;             ///< nodes this small always become leaves
-        unsigned max_leaf_size = 8;             ///< nodes larger than this are always split
-        float traversal_cost = 1.0f;            ///< Ct, cost of visiting an inner node
-        float intersection_cost = 1.0f;         ///< Ci, cost of one ray/triangle test (of one block, below)
-        /// Primitives tested together: a set of n costs Ci·ceil(n / leaf_block)
-        /// in the SAH. 1 (default) for one-at-a-time tests; 4 for trees traced
-        /// through 4-triangle SIMD blocks (scene/block_bvh.hpp), whose leaves
-        /// then fill their blocks. A power of two, 1..16.
-        unsigned leaf_block = 1;
+        LeafCost leaf;                          ///< max leaf size (larger nodes are always split), Ct, Ci, leaf_block
         unsigned threads = 0;                   ///< 0 = all hardware threads; at most kMaxThreads (else std::invalid_argument)
         std::size_t parallel_threshold = 4096;  ///< subtrees smaller than this stay on one thread
     };
@@ -60,7 +53,7 @@ struct BinnedSahBuilder {
             throw std::invalid_argument("BinnedSahBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("BinnedSahBuilder: too many primitives");
         if (cfg.bins < 2 || cfg.bins > 256) throw std::invalid_argument("BinnedSahBuilder: bins must be in [2, 256]");
-        check_leaf_block(cfg.leaf_block, "BinnedSahBuilder");
+        check_leaf_block(cfg.leaf.leaf_block, "BinnedSahBuilder");
         check_threads(cfg.threads, "BinnedSahBuilder");
         Bvh bvh;
         const auto n = static_cast<std::uint32_t>(boxes.size());
@@ -226,7 +219,7 @@ private:
                 acc = AABB{};
                 for (std::uint32_t k = 1; k < n; ++k) {
                     acc.grow(refs[b + k - 1].box);
-                    const float c = acc.half_area() * blocks(k) + rarea[k] * blocks(n - k);
+                    const float c = acc.half_area() * cfg.leaf.blocks(k) + rarea[k] * cfg.leaf.blocks(n - k);
                     if (c < best.cost) best = {a, k, c};
                 }
             }
@@ -242,11 +235,6 @@ private:
                 return x.c[axis] < y.c[axis] || (x.c[axis] == y.c[axis] && x.id < y.id);
             });
             return mid;
-        }
-
-        /// SAH weight of n primitives: n, or the number of blocks they fill.
-        float blocks(std::uint32_t n) const noexcept {
-            return leaf_block_weight(n, cfg.leaf_block);
         }
 
         void make_leaf(std::uint32_t node, std::uint32_t b, std::uint32_t e, const AABB& box) {
@@ -287,13 +275,13 @@ private:
                 // small node: exact SAH over all n-1 splits of each axis' sorted order
                 const SweepResult sw = sweep(b, e);
                 const float sa = box.half_area();
-                const float split_cost = cfg.traversal_cost * sa + cfg.intersection_cost * sw.cost;
-                if (n <= cfg.max_leaf_size && cfg.intersection_cost * sa * blocks(n) <= split_cost)
+                const float split_cost = cfg.leaf.traversal_cost * sa + cfg.leaf.intersection_cost * sw.cost;
+                if (n <= cfg.leaf.max_leaf_size && cfg.leaf.leaf_cost(sa, n) <= split_cost)
                     return make_leaf(node, b, e, box);
                 mid = sw.axis >= 0 ? b + sw.split : median(b, e, widest);
             } else if (!(ext[widest] > 0.0f)) {
                 // all centroids coincide: nothing to bin
-                if (n <= cfg.max_leaf_size) return make_leaf(node, b, e, box);
+                if (n <= cfg.leaf.max_leaf_size) return make_leaf(node, b, e, box);
                 mid = median(b, e, 0);
             } else {
                 const int nb = static_cast<int>(cfg.bins);
@@ -323,7 +311,8 @@ private:
                         acc.grow(ab[k - 1].box);
                         cnt += ab[k - 1].count;
                         if (cnt == 0 || sc.rcount[k] == 0) continue;
-                        const float c = acc.half_area() * blocks(cnt) + sc.rarea[k] * blocks(sc.rcount[k]);
+                        const float c =
+                            acc.half_area() * cfg.leaf.blocks(cnt) + sc.rarea[k] * cfg.leaf.blocks(sc.rcount[k]);
                         if (c < best) {
                             best = c;
                             best_axis = a;
@@ -332,9 +321,9 @@ private:
                     }
                 }
                 const float sa = box.half_area();
-                const float split_cost = cfg.traversal_cost * sa + cfg.intersection_cost * best;
-                const float leaf_cost = cfg.intersection_cost * sa * blocks(n);
-                if (n <= cfg.max_leaf_size && (best_axis < 0 || leaf_cost <= split_cost))
+                const float split_cost = cfg.leaf.traversal_cost * sa + cfg.leaf.intersection_cost * best;
+                const float leaf_cost = cfg.leaf.leaf_cost(sa, n);
+                if (n <= cfg.leaf.max_leaf_size && (best_axis < 0 || leaf_cost <= split_cost))
                     return make_leaf(node, b, e, box);
                 if (best_axis < 0) {
                     mid = median(b, e, widest);

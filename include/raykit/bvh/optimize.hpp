@@ -10,7 +10,7 @@
 // trees are local optima that a top-down SAH build does not share (on the
 // bunny and a 100k torus PLOC's SAH cost is 1.08-1.10x binned SAH's, spread
 // over all levels above the leaves). Two classic repairs run on the merge tree
-// before the leaf collapse (bvh/collapse.hpp):
+// before the leaf merge (bvh/bottom_up.hpp):
 //
 //  1. Reinsertion (Bittner, Hapala & Havran, "Fast insertion-based
 //     optimization of bounding volume hierarchies", CGF 2013). The
@@ -28,14 +28,14 @@
 //     it (γ) roots a treelet: its subtree cut down to 7 leaves by repeatedly
 //     opening the leaf with the largest box. A dynamic program over the 127
 //     subsets of those leaves finds the binary tree over them of least cost,
-//     with the leaf-collapse rule and constants of the collapse pass (a
+//     with the rule and constants of the back end's leaf merge (a
 //     subset of at most max_leaf_size primitives may become one leaf,
 //     Ci·SA·n against Ct·SA + the halves' costs); the treelet is rebuilt when
 //     that is cheaper. `treelet_rounds` rounds; after the first, only nodes
 //     whose subtree changed run again. γ bounds the work: smaller subtrees
 //     stay as built (PLOC's lowest levels are already as good as SAH's).
 //
-// The pass keeps its result only when the collapse-aware SAH cost of the whole
+// The pass keeps its result only when the leaf-merge-aware SAH cost of the whole
 // tree went down (else the tree is left as built), so it never makes a tree
 // worse. It is deterministic and gives the same tree for any thread count:
 // reinsertion is sequential, and the treelets of a round run children before
@@ -55,8 +55,9 @@
 #include <utility>
 #include <vector>
 
-#include "raykit/bvh/collapse.hpp"
+#include "raykit/bvh/bottom_up.hpp"
 #include "raykit/bvh/node.hpp"
+#include "raykit/bvh/sanitize.hpp"
 #include "raykit/util/parallel.hpp"
 
 namespace raykit {
@@ -99,7 +100,7 @@ public:
     /// `in_order`: t is as a builder left it (batches, children first, every
     /// node reachable); else it is walked from the root.
     MergeTreeOptimizer(MergeTree& t, std::span<const AABB> boxes, std::span<const vec3> centers,
-                       const LeafCollapseConfig& lc, unsigned threads, bool in_order, WorkTeam* team = nullptr)
+                       const LeafCost& lc, unsigned threads, bool in_order, WorkTeam* team = nullptr)
         : t_(t), lc_(lc), n_(t.prims), threads_(std::max(1u, threads)), team_(team), all_reachable_(in_order) {
         const std::size_t total = std::size_t(n_) + t.size();
         box_.resize(total);
@@ -115,9 +116,8 @@ public:
                 parent_[p] = kNone;
             }
         };
-        const std::size_t chunks = threads_ > 1 && n_ >= kBottomUpParallelPass ? threads_ : 1;
-        if (team_) team_->chunks(n_, chunks, prim);
-        else parallel_chunks(n_, chunks, threads_, prim);
+        const std::size_t chunks = threads_ > 1 && n_ >= kMinParallelPass ? threads_ : 1;
+        run_chunks(team_, threads_, n_, chunks, prim);
         root_ = t.root;
         parent_[root_] = kNone;
         auto init = [&](std::size_t v) {  // inner node v, children done
@@ -161,7 +161,7 @@ public:
 
     /// Writes the tree back into the merge tree: inner nodes renumbered
     /// children first, one batch per height. When the passes did not lower
-    /// the collapse-aware SAH cost, the tree as it came in is written.
+    /// the leaf-merge-aware SAH cost, the tree as it came in is written.
     void write_back() {
         MergeTree& t = t_;
         std::vector<std::uint32_t> order;
@@ -204,7 +204,7 @@ public:
         t.info_ready = false;
     }
 
-    /// Collapse-aware SAH cost (working boxes, not normalised) of the tree
+    /// Leaf-merge-aware SAH cost (working boxes, not normalised) of the tree
     /// as it came in.
     float start_cost() const noexcept { return start_cost_; }
 
@@ -354,15 +354,15 @@ private:
     std::vector<Entry> heap_;
 
     // ------------------------------------------------------ treelet restructuring
-    /// Collapse-aware cost of inner node v from its children (as node_cost).
+    /// Leaf-merge-aware cost of inner node v from its children (as node_cost).
     void eval(std::uint32_t v) {
         const auto& k = kid_[v - n_];
         const float sa = area(v);
         const std::uint32_t cnt = count_[k[0]] + count_[k[1]];
         count_[v] = cnt;
-        const float split = lc_.traversal_cost * sa + cost_[k[0]] + cost_[k[1]];
-        const float leaf = lc_.intersection_cost * sa * lc_.blocks(cnt);
-        cost_[v] = cnt <= std::max(1u, lc_.max_leaf_size) && leaf <= split ? leaf : split;
+        const float split = lc_.split_cost(sa, cost_[k[0]]) + cost_[k[1]];
+        const float leaf = lc_.leaf_cost(sa, cnt);
+        cost_[v] = cnt <= lc_.leaf_limit() && leaf <= split ? leaf : split;
     }
 
     /// For every subset s of the 7 treelet leaves, the subsets p that hold
@@ -419,7 +419,7 @@ private:
         std::array<AABB, 1 << kTreeletLeaves> sb;
         std::array<float, 1 << kTreeletLeaves> sa, copt;
         std::array<std::uint32_t, 1 << kTreeletLeaves> sc;
-        const std::uint32_t max_leaf = std::max(1u, lc_.max_leaf_size);
+        const std::uint32_t max_leaf = lc_.leaf_limit();
         for (int s = 1; s < S; ++s) {
             const int low = s & -s;
             if (s == low) {
@@ -446,8 +446,8 @@ private:
             }
             for (; i < np; ++i) b0 = std::min(b0, copt[P[i]] + copt[s ^ P[i]]);
             const float best = std::min(std::min(b0, b1), std::min(b2, b3));
-            const float split = lc_.traversal_cost * sa[s] + best;
-            const float leaf_cost = lc_.intersection_cost * sa[s] * lc_.blocks(sc[s]);
+            const float split = lc_.split_cost(sa[s], best);
+            const float leaf_cost = lc_.leaf_cost(sa[s], sc[s]);
             copt[s] = sc[s] <= max_leaf && leaf_cost <= split ? leaf_cost : split;
         }
         // the split of s that reaches copt (the first in table order)
@@ -556,8 +556,7 @@ private:
                 std::vector<std::pair<std::uint32_t, bool>> stack;
                 for (std::size_t i = lo; i < hi; ++i) process_subtree(frontier[i], gamma, stack);
             };
-            if (team_) team_->chunks(frontier.size(), frontier.size(), part);
-            else parallel_chunks(frontier.size(), frontier.size(), threads_, part);
+            run_chunks(team_, threads_, frontier.size(), frontier.size(), part);
         } else {
             std::vector<std::pair<std::uint32_t, bool>> stack;
             for (const std::uint32_t f : frontier) process_subtree(f, gamma, stack);
@@ -567,7 +566,7 @@ private:
 
     static constexpr std::uint8_t kFresh = 1, kPending = 2;
     MergeTree& t_;
-    LeafCollapseConfig lc_;
+    LeafCost lc_;
     std::uint32_t n_;
     unsigned threads_;
     WorkTeam* team_;
@@ -590,7 +589,7 @@ private:
 /// Runs the post-pass on a builder's merge tree (see the top of this file);
 /// afterwards finish_bottom_up takes the tree as usual.
 inline void optimize_merge_tree(MergeTree& t, std::span<const AABB> boxes, std::span<const vec3> centers,
-                                const LeafCollapseConfig& lc, const OptimizeConfig& oc, unsigned threads,
+                                const LeafCost& lc, const OptimizeConfig& oc, unsigned threads,
                                 WorkTeam* team = nullptr) {
     if (!oc.enabled() || t.prims < 3) return;
     t.close_batch();

@@ -46,8 +46,8 @@
 // Sorting and the per-element passes (keys, gathers, the next level's boxes)
 // run on all threads; the result does not depend on the thread count.
 //
-// The merge tree then goes through the shared back end (bvh/collapse.hpp):
-// SAH leaf collapse into leaves of up to max_leaf_size primitives, the
+// The merge tree then goes through the shared back end (bvh/bottom_up.hpp):
+// SAH leaf merge into leaves of up to leaf.max_leaf_size primitives, the
 // RAYKIT_BVH_MAX_DEPTH bound (automatically met: each level halves the
 // element count) and pre-order output.
 #pragma once
@@ -63,9 +63,13 @@
 #include <utility>
 #include <vector>
 
-#include "raykit/bvh/collapse.hpp"
+#include "raykit/bvh/bottom_up.hpp"
+#include "raykit/bvh/morton.hpp"
 #include "raykit/bvh/node.hpp"
+#include "raykit/bvh/sanitize.hpp"
 #include "raykit/util/parallel.hpp"
+#include "raykit/util/radix_sort.hpp"
+#include "raykit/util/raw_array.hpp"
 
 namespace raykit {
 
@@ -76,10 +80,7 @@ struct PairwiseBuilder {
             area,    ///< surface area of the merged box
         };
         Metric metric = Metric::centre;
-        unsigned max_leaf_size = 8;      ///< leaf collapse: larger subtrees stay split (0 acts as 1)
-        float traversal_cost = 1.0f;     ///< Ct for the leaf collapse
-        float intersection_cost = 1.0f;  ///< Ci for the leaf collapse
-        unsigned leaf_block = 1;        ///< leaf collapse: primitives per SIMD test (LeafCollapseConfig)
+        LeafCost leaf;                   ///< the back end's leaf merge: max leaf size, Ct, Ci, leaf_block
         unsigned threads = 0;            ///< 0 = all hardware threads; at most kMaxThreads (else std::invalid_argument)
     };
 
@@ -205,7 +206,9 @@ private:
             // Morton sort of the centres (30-bit codes: the order only affects speed)
             const detail::MortonQuantizer mq(detail::finite_point_bounds(L.centre, threads));
             detail::RawArray<std::uint64_t> keys(m), scratch;
-            detail::par_for(m, threads, [&](std::size_t i) { keys[i] = std::uint64_t(mq.code30(L.centre[i])) << 32 | i; });
+            parallel_for(
+                m, threads, [&](std::size_t i) { keys[i] = std::uint64_t(mq.code30(L.centre[i])) << 32 | i; },
+                detail::kMinParallelPass);
             detail::radix_sort_words(keys, 32, 64, threads, scratch);
             scratch = {};
             elem.resize(m);
@@ -213,13 +216,13 @@ private:
             leaf_of.resize(m);
             if (area) pb.resize(m);
             else pc.resize(m);
-            detail::par_for(m, threads, [&](std::size_t s) {
+            parallel_for(m, threads, [&](std::size_t s) {
                 const auto e = static_cast<std::uint32_t>(keys[s]);
                 elem[s] = e;
                 pos[e] = static_cast<std::uint32_t>(s);
                 if (area) pb[s] = L.box[e];
                 else pc[s] = L.centre[e];
-            });
+            }, detail::kMinParallelPass);
             // Radix tree over the codes: a range splits where its highest
             // differing code bit changes (octree cells, so sibling boxes
             // barely overlap), equal codes in the middle, down to ≤ kBucket.
@@ -389,7 +392,7 @@ private:
         if (boxes.size() != centers.size())
             throw std::invalid_argument("PairwiseBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("PairwiseBuilder: too many primitives");
-        check_leaf_block(cfg.leaf_block, "PairwiseBuilder");
+        check_leaf_block(cfg.leaf.leaf_block, "PairwiseBuilder");
         check_threads(cfg.threads, "PairwiseBuilder");
         const unsigned threads = resolve_threads(cfg.threads);
         const bool area = cfg.metric == Config::Metric::area;
@@ -402,10 +405,10 @@ private:
         cur.centre.assign(sc.view.begin(), sc.view.end());
         cur.box.resize(n);
         cur.node.resize(n);
-        detail::par_for(n, threads, [&](std::size_t i) {
+        parallel_for(n, threads, [&](std::size_t i) {
             cur.box[i] = detail::working_box(boxes[i], sc[i]);
             cur.node[i] = static_cast<std::uint32_t>(i);
-        });
+        }, detail::kMinParallelPass);
         std::vector<Pair> pairs;
         while (cur.size() > 1) {
             pairs.clear();
@@ -418,14 +421,14 @@ private:
             next.centre.resize(m2);
             next.box.resize(m2);
             next.node.resize(m2);
-            detail::par_for(np, threads, [&](std::size_t t) {
+            parallel_for(np, threads, [&](std::size_t t) {
                 const Pair p = pairs[t];
                 const AABB b = merge(cur.box[p.a], cur.box[p.b]);
                 tree.set(base + t, cur.node[p.a], cur.node[p.b]);
                 next.box[t] = b;
                 next.centre[t] = detail::box_centre(b);
                 next.node[t] = n + base + static_cast<std::uint32_t>(t);
-            });
+            }, detail::kMinParallelPass);
             if (carried != kNone) {
                 next.centre[np] = cur.centre[carried];
                 next.box[np] = cur.box[carried];
@@ -435,8 +438,7 @@ private:
             std::swap(cur, next);
         }
         tree.root = n > 0 ? cur.node[0] : 0;
-        const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost, cfg.leaf_block};
-        return detail::finish_bottom_up(tree, boxes, sc.view, lc, threads);
+        return detail::finish_bottom_up(tree, boxes, sc.view, cfg.leaf, threads);
     }
 };
 

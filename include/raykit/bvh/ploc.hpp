@@ -32,9 +32,9 @@
 //
 // Merging can chain (one cluster absorbing singletons iteration after
 // iteration), so the merge tree may be deep: the shared back end
-// (bvh/collapse.hpp) rebuilds any subtree that would pass
-// RAYKIT_BVH_MAX_DEPTH with median splits, collapses subtrees into leaves by
-// the SAH (max_leaf_size, traversal_cost, intersection_cost) and writes the
+// (bvh/bottom_up.hpp) rebuilds any subtree that would pass
+// RAYKIT_BVH_MAX_DEPTH with median splits, merges subtrees into leaves by
+// the SAH (Config::leaf) and writes the
 // pre-order layout. NaN or degenerate primitives: as in the other builders,
 // non-finite centroids move to the centre of the finite ones.
 #pragma once
@@ -46,10 +46,14 @@
 #include <stdexcept>
 #include <vector>
 
-#include "raykit/bvh/collapse.hpp"
+#include "raykit/bvh/bottom_up.hpp"
+#include "raykit/bvh/morton.hpp"
 #include "raykit/bvh/node.hpp"
 #include "raykit/bvh/optimize.hpp"
+#include "raykit/bvh/sanitize.hpp"
 #include "raykit/util/parallel.hpp"
+#include "raykit/util/radix_sort.hpp"
+#include "raykit/util/raw_array.hpp"
 
 namespace raykit {
 
@@ -63,10 +67,7 @@ struct PlocBuilder {
         /// clustering worse here); with the post-pass R 4 stays ahead, and
         /// time grows with R, so 4.
         unsigned radius = 4;
-        unsigned max_leaf_size = 8;      ///< leaf collapse: larger subtrees stay split (0 acts as 1)
-        float traversal_cost = 1.0f;     ///< Ct for the leaf collapse
-        float intersection_cost = 1.0f;  ///< Ci for the leaf collapse
-        unsigned leaf_block = 1;        ///< leaf collapse: primitives per SIMD test (LeafCollapseConfig)
+        LeafCost leaf;                   ///< the back end's leaf merge: max leaf size, Ct, Ci, leaf_block
         unsigned threads = 0;            ///< 0 = all hardware threads; at most kMaxThreads (else std::invalid_argument)
         OptimizeConfig optimize{};       ///< post-pass (bvh/optimize.hpp); OptimizeConfig::off() for plain PLOC
     };
@@ -79,7 +80,7 @@ struct PlocBuilder {
             throw std::invalid_argument("PlocBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("PlocBuilder: too many primitives");
         check_threads(cfg.threads, "PlocBuilder");
-        check_leaf_block(cfg.leaf_block, "PlocBuilder");
+        check_leaf_block(cfg.leaf.leaf_block, "PlocBuilder");
         if (cfg.radius < 1 || cfg.radius > 1024) throw std::invalid_argument("PlocBuilder: radius must be in [1, 1024]");
         const unsigned threads = resolve_threads(cfg.threads);
         const auto n = static_cast<std::uint32_t>(boxes.size());
@@ -89,9 +90,9 @@ struct PlocBuilder {
         tree.info.reserve(n > 0 ? n - 1 : 0);
 
         // Helper threads for the whole build: an iteration is a few short passes.
-        detail::WorkTeam team(n >= detail::kBottomUpParallelPass ? threads : 1u);
+        detail::WorkTeam team(n >= detail::kMinParallelPass ? threads : 1u);
         auto par_for = [&](std::size_t m, auto&& fn) {
-            team.chunks(m, m < detail::kBottomUpParallelPass ? 1 : team.size(),
+            team.chunks(m, m < detail::kMinParallelPass ? 1 : team.size(),
                         [&](std::size_t, std::size_t lo, std::size_t hi) {
                             for (std::size_t i = lo; i < hi; ++i) fn(i);
                         });
@@ -199,7 +200,7 @@ struct PlocBuilder {
             std::swap(cur, next);
         }
         tree.root = n > 0 ? cur.node[0] : 0;  // merges keep the lower position: 0 survives
-        const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost, cfg.leaf_block};
+        const LeafCost& lc = cfg.leaf;
         detail::optimize_merge_tree(tree, boxes, sc.view, lc, cfg.optimize, team.size(), &team);
         return detail::finish_bottom_up(tree, boxes, sc.view, lc, team.size(), &team);
     }

@@ -26,6 +26,29 @@ inline float leaf_block_weight(std::uint32_t n, unsigned leaf_block) noexcept {
     return float((n + leaf_block - 1) >> std::countr_zero(leaf_block));
 }
 
+/// The leaf settings of the SAH, one object composed into every builder's
+/// Config (member `leaf`) and into BuildOptions, with the cost terms the
+/// builders compare. The defaults are every builder's.
+struct LeafCost {
+    unsigned max_leaf_size = 8;      ///< larger sets never become one leaf (bottom-up builders: 0 acts as 1)
+    float traversal_cost = 1.0f;     ///< Ct, cost of visiting an inner node
+    float intersection_cost = 1.0f;  ///< Ci, cost of one ray/triangle test (of one block, below)
+    /// Primitives tested together: a set of n costs Ci·ceil(n / leaf_block)
+    /// in the SAH. 1 (default) for one-at-a-time tests; 4 for trees traced
+    /// through 4-triangle SIMD blocks (scene/block_bvh.hpp), whose leaves
+    /// then fill their blocks. A power of two, 1..16 (check_leaf_block).
+    unsigned leaf_block = 1;
+
+    /// The SAH weight of n primitives in one leaf: ceil(n / leaf_block).
+    float blocks(std::uint32_t n) const noexcept { return leaf_block_weight(n, leaf_block); }
+    /// Ci·SA·blocks(n): the cost of a leaf of n primitives with surface area sa.
+    float leaf_cost(float sa, std::uint32_t n) const noexcept { return intersection_cost * sa * blocks(n); }
+    /// Ct·SA + children: the cost of an inner node over children that cost `children`.
+    float split_cost(float sa, float children) const noexcept { return traversal_cost * sa + children; }
+    /// Largest primitive count of a merged leaf for the bottom-up builders (0 acts as 1).
+    std::uint32_t leaf_limit() const noexcept { return max_leaf_size > 1 ? max_leaf_size : 1u; }
+};
+
 /// SAH cost with Ct = Ci = 1:
 ///   cost = Σ_inner SA(n)/SA(root) + Σ_leaf SA(n)/SA(root) · prims(n).
 /// Comparable across builders and with other libraries' trees over the same

@@ -41,11 +41,11 @@
 //   The next level keeps the chunks' order: new nodes and carried elements,
 //   a new node where its first child was; the sort of step 1 then only has to
 //   place the new nodes (carried elements keep their keys and order).
-// The merge tree then goes through the shared back end (bvh/collapse.hpp):
+// The merge tree then goes through the shared back end (bvh/bottom_up.hpp):
 // the optional post-pass of bvh/optimize.hpp (off by default here), the depth
 // bound (a long run of mutual levels could pass RAYKIT_BVH_MAX_DEPTH; any
-// such subtree is rebuilt with median splits), SAH leaf collapse
-// (max_leaf_size, traversal_cost, intersection_cost) and the pre-order
+// such subtree is rebuilt with median splits), SAH leaf merge
+// (Config::leaf) and the pre-order
 // output. Degenerate or NaN primitives are handled as in the other builders:
 // non-finite centroids move to the centre of the finite ones.
 //
@@ -77,10 +77,14 @@
 #include <type_traits>
 #include <vector>
 
-#include "raykit/bvh/collapse.hpp"
+#include "raykit/bvh/bottom_up.hpp"
+#include "raykit/bvh/morton.hpp"
 #include "raykit/bvh/node.hpp"
 #include "raykit/bvh/optimize.hpp"
+#include "raykit/bvh/sanitize.hpp"
 #include "raykit/util/parallel.hpp"
+#include "raykit/util/radix_sort.hpp"
+#include "raykit/util/raw_array.hpp"
 
 namespace raykit {
 
@@ -103,10 +107,7 @@ struct SortAxisBuilder {
         Axis axis = Axis::morton;           ///< (thesis: x; see Quality above)
         Metric metric = Metric::area;       ///< (thesis: centre)
         Pairing pairing = Pairing::mutual;  ///< (thesis: greedy; see Quality above)
-        unsigned max_leaf_size = 8;         ///< leaf collapse: larger subtrees stay split (0 acts as 1)
-        float traversal_cost = 1.0f;        ///< Ct for the leaf collapse
-        float intersection_cost = 1.0f;     ///< Ci for the leaf collapse
-        unsigned leaf_block = 1;        ///< leaf collapse: primitives per SIMD test (LeafCollapseConfig)
+        LeafCost leaf;                      ///< the back end's leaf merge: max leaf size, Ct, Ci, leaf_block
         unsigned threads = 0;               ///< 0 = all hardware threads; at most kMaxThreads (else std::invalid_argument)
         OptimizeConfig optimize = OptimizeConfig::off();  ///< post-pass (bvh/optimize.hpp)
     };
@@ -119,7 +120,7 @@ struct SortAxisBuilder {
             throw std::invalid_argument("SortAxisBuilder: boxes and centers differ in size");
         if (boxes.size() >= 0x7FFFFFFFu) throw std::length_error("SortAxisBuilder: too many primitives");
         check_threads(cfg.threads, "SortAxisBuilder");
-        check_leaf_block(cfg.leaf_block, "SortAxisBuilder");
+        check_leaf_block(cfg.leaf.leaf_block, "SortAxisBuilder");
         if (cfg.window < 1 || cfg.window > 4096)
             throw std::invalid_argument("SortAxisBuilder: window must be in [1, 4096]");
         const unsigned threads = resolve_threads(cfg.threads);
@@ -135,8 +136,8 @@ struct SortAxisBuilder {
         // the longest axis come from the primitives' centroid bounds.
         const KeyMaker key{cfg.axis == Config::Axis::morton, cfg.axis == Config::Axis::longest ? max_axis(sc.bounds.extent()) : 0,
                            detail::MortonQuantizer(sc.bounds)};
-        const LeafCollapseConfig lc{cfg.max_leaf_size, cfg.traversal_cost, cfg.intersection_cost, cfg.leaf_block};
-        // The collapse data of each new node are filled in while pairing;
+        const LeafCost& lc = cfg.leaf;
+        // The leaf-merge data of each new node are filled in while pairing;
         // they hold when every primitive box is real (finite, non-empty),
         // else finish_bottom_up recomputes them from the real boxes.
         std::vector<std::uint8_t> substituted(std::max(1u, threads), 0);
@@ -290,7 +291,7 @@ private:
         if (i < m) detail::radix_sort_words(a, 32, 64, team, scratch);
     }
 
-    /// One element of a level: its working box, node id and leaf-collapse
+    /// One element of a level: its working box, node id and leaf-merge
     /// data, kept together so a gather moves one record.
     struct Elem {
         AABB box;
@@ -347,7 +348,7 @@ private:
         detail::RawArray<std::uint64_t>* keys_carried;
         detail::RawArray<std::uint64_t>* keys_new;
         const KeyMaker* key;
-        const LeafCollapseConfig* lc;
+        const LeafCost* lc;
 
         /// Carries S[k] (sorted position k) as element t, the a-th carried one.
         void carry(const Level& S, std::size_t k, std::uint32_t t, std::uint32_t a) const {

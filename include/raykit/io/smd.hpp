@@ -3,11 +3,8 @@
 //
 // Interface
 // ---------
-//   struct Bone          { std::string name; int parent; };        // parent -1 = root
-//   struct BonePose      { vec3 position; vec3 rotation; };        // local to the parent;
-//                                                                  // rotation = Euler XYZ radians
-//   struct BoneWeight    { std::uint32_t bone; float weight; };
-//   struct VertexWeights { std::vector<BoneWeight> links; };       // weights > 0, sum 1
+//   Bone, BonePose, BoneWeight, VertexWeights: scene/skeleton_data.hpp (the
+//   format-independent skeleton and skin data this parser fills)
 //   struct SmdModel      { bones, bind_pose, mesh, weights };
 //   struct SmdSkeletonAnim { frames, times, fps = 30, warnings;      // key frames + their frame numbers
 //                            frame_count(), key_of_frame(f), frame(f) };
@@ -147,37 +144,12 @@
 #include <utility>
 #include <vector>
 
-#include "raykit/io/obj.hpp"
+#include "raykit/io/lexer.hpp"
 #include "raykit/io/parse_error.hpp"
 #include "raykit/scene/mesh.hpp"
+#include "raykit/scene/skeleton_data.hpp"
 
 namespace raykit {
-
-/// A node of the skeleton. parent is the index of the parent bone, -1 for a root.
-struct Bone {
-    std::string name;
-    int parent = -1;
-};
-
-/// Local pose of a bone relative to its parent, as SMD stores it: translation
-/// and Euler angles in radians. The rotation matrix is Rz(z) * Ry(y) * Rx(x)
-/// (see anim/skeleton.hpp).
-struct BonePose {
-    vec3 position{0.0f};
-    vec3 rotation{0.0f};
-};
-
-/// One bone influence of a vertex.
-struct BoneWeight {
-    std::uint32_t bone = 0;
-    float weight = 0.0f;
-};
-
-/// The bone influences of one vertex: distinct bones, weights > 0 summing to 1
-/// (up to float rounding), in file order with Valve's parent remainder last.
-struct VertexWeights {
-    std::vector<BoneWeight> links;
-};
 
 /// A reference SMD: skeleton, bind pose and the skinned mesh (see header).
 struct SmdModel {

@@ -303,8 +303,8 @@ Image render_hook_cpu(const ShadeScene& scene, const Camera& cam, const RenderSe
 /// of 4, leaves up to 12), which the CPU walks as 8-wide nodes over 4-triangle blocks.
 inline BuildOptions render_build_options(unsigned threads = 0) {
     BuildOptions b;
-    b.leaf_block = 4;
-    b.max_leaf_size = 12;
+    b.leaf.leaf_block = 4;
+    b.leaf.max_leaf_size = 12;
     b.threads = threads;
     return b;
 }

@@ -13,7 +13,7 @@
 // watertight test per block, reading contiguous memory, instead of one scalar
 // test per triangle through prim_ids → triangle → three vertices.
 //
-// Trees built with Config::leaf_block = 4 (sah_config(), any builder's
+// Trees built with Config::leaf.leaf_block = 4 (sah_config(), any builder's
 // leaf_block) fill the blocks: their leaves hold 4-12 triangles instead of
 // 1-8, so a ray visits fewer nodes and tests full blocks.
 //
@@ -170,13 +170,13 @@ struct BlockBvhT {
 
   public:
     /// Builder settings for trees traced through blocks: the SAH counts leaf
-    /// cost in blocks of 4 (Config::leaf_block) and leaves hold up to 3 blocks.
+    /// cost in blocks of 4 (Config::leaf.leaf_block) and leaves hold up to 3 blocks.
     /// On the bunny and the generated tori this takes random rays from
     /// 0.4-0.5x to 0.7-0.85x Embree's speed (README, bench_trace).
     static BinnedSahBuilder::Config sah_config(unsigned threads = 0) {
         BinnedSahBuilder::Config c;
-        c.leaf_block = 4;
-        c.max_leaf_size = 12;
+        c.leaf.leaf_block = 4;
+        c.leaf.max_leaf_size = 12;
         c.threads = threads;
         return c;
     }

@@ -1,7 +1,7 @@
 // raykit/scene/build.hpp — build a BVH over a triangle mesh.
 //
 //   Bvh bvh = build_bvh(mesh);                                  // binned SAH
-//   Bvh bvh = build_bvh<BinnedSahBuilder>(mesh, {.max_leaf_size = 4});
+//   Bvh bvh = build_bvh<BinnedSahBuilder>(mesh, {.leaf = {.max_leaf_size = 4}});
 #pragma once
 
 #include <vector>

@@ -33,8 +33,7 @@ struct BuildOptions {
     enum class Pairing { greedy, mutual };
 
     Builder builder = Builder::sah;
-    unsigned max_leaf_size = 8;  ///< all builders
-    unsigned leaf_block = 1;     ///< all builders: SAH leaf cost in blocks of this many (4 for BlockBvh tracing)
+    LeafCost leaf;               ///< all builders: max leaf size, Ct, Ci, leaf_block (4 for BlockBvh tracing)
     unsigned threads = 0;        ///< all builders; 0 = all hardware threads, at most kMaxThreads (else std::invalid_argument)
     unsigned window = SortAxisBuilder::Config{}.window;  ///< sortaxis: W
     Axis axis = Axis::morton;    ///< sortaxis
@@ -89,8 +88,7 @@ inline Bvh build_bvh(std::span<const AABB> boxes, std::span<const vec3> centers,
     switch (o.builder) {
         case B::pairwise: {
             PairwiseBuilder::Config c;
-            c.max_leaf_size = o.max_leaf_size;
-            c.leaf_block = o.leaf_block;
+            c.leaf = o.leaf;
             c.threads = o.threads;
             if (o.metric)
                 c.metric = *o.metric == BuildOptions::Metric::area ? PairwiseBuilder::Config::Metric::area
@@ -99,8 +97,7 @@ inline Bvh build_bvh(std::span<const AABB> boxes, std::span<const vec3> centers,
         }
         case B::sortaxis: {
             SortAxisBuilder::Config c;
-            c.max_leaf_size = o.max_leaf_size;
-            c.leaf_block = o.leaf_block;
+            c.leaf = o.leaf;
             c.threads = o.threads;
             c.window = o.window;
             c.axis = o.axis == BuildOptions::Axis::x         ? SortAxisBuilder::Config::Axis::x
@@ -117,8 +114,7 @@ inline Bvh build_bvh(std::span<const AABB> boxes, std::span<const vec3> centers,
         }
         case B::ploc: {
             PlocBuilder::Config c;
-            c.max_leaf_size = o.max_leaf_size;
-            c.leaf_block = o.leaf_block;
+            c.leaf = o.leaf;
             c.threads = o.threads;
             c.radius = o.radius;
             if (o.optimize) c.optimize = *o.optimize;
@@ -126,8 +122,7 @@ inline Bvh build_bvh(std::span<const AABB> boxes, std::span<const vec3> centers,
         }
         default: {
             BinnedSahBuilder::Config c;
-            c.max_leaf_size = o.max_leaf_size;
-            c.leaf_block = o.leaf_block;
+            c.leaf = o.leaf;
             c.threads = o.threads;
             return BinnedSahBuilder::build(boxes, centers, c);
         }

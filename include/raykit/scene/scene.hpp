@@ -623,7 +623,7 @@ private:
     std::vector<SceneObject> objects_;
     std::vector<SceneInstance> instances_;
     Bvh top_;
-    BinnedSahBuilder::Config top_config_{.max_leaf_size = 1};
+    BinnedSahBuilder::Config top_config_{.leaf = {.max_leaf_size = 1}};
     bool stale_ = true;
 };
 

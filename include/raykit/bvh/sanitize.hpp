@@ -1,0 +1,95 @@
+// raykit/bvh/sanitize.hpp — the centroids and boxes the builders reason with
+// when the input is not finite.
+//
+// A mesh may hold NaN or infinite vertices (a broken export, a skinning bug),
+// and an empty box has min > max. Sorting, Morton codes and nearest-neighbour
+// distances must never see those, or orders stop being orders and the builders
+// loop or crash. So every builder works with sanitized centroids (a non-finite
+// one sits at the centre of the finite ones, the same rule as BinnedSahBuilder)
+// and "working" boxes (a primitive's own box when it is finite and non-empty,
+// else the point box at its sanitized centroid). These are used for decisions
+// only: the output boxes are always the real ones.
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <vector>
+
+#include "raykit/math/aabb.hpp"
+#include "raykit/util/parallel.hpp"
+
+namespace raykit::detail {
+
+inline constexpr float kFloatMax = std::numeric_limits<float>::max();
+
+/// Bounds of a set of points (finite ones only) and whether any was not
+/// finite. Exact for any chunking.
+inline AABB finite_point_bounds(std::span<const vec3> pts, unsigned threads, bool* any_bad = nullptr) {
+    const std::size_t chunks = pass_chunks(pts.size());
+    std::vector<AABB> part(chunks);
+    std::vector<std::uint8_t> bad(chunks, 0);
+    parallel_chunks(pts.size(), chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+        AABB b;
+        bool nb = false;
+        for (std::size_t i = lo; i < hi; ++i) {
+            if (is_finite(pts[i])) b.grow(pts[i]);
+            else nb = true;
+        }
+        part[c] = b;
+        bad[c] = nb;
+    });
+    AABB all;
+    for (const AABB& b : part) all.grow(b);
+    if (any_bad) *any_bad = std::find(bad.begin(), bad.end(), 1) != bad.end();
+    return all;
+}
+
+/// The centroids a builder works with: the caller's, or, when some are not
+/// finite (NaN triangles), a copy where those sit at the centre of the
+/// finite ones, so that sorting, Morton codes and distances never see a NaN
+/// (the same rule as BinnedSahBuilder).
+struct SanitizedCenters {
+    std::vector<vec3> copy;       ///< used only when an input centroid was not finite
+    std::span<const vec3> view;   ///< the centroids to use
+    AABB bounds;                  ///< bounds of the finite input centroids (empty if none)
+    const vec3& operator[](std::size_t i) const noexcept { return view[i]; }
+    std::size_t size() const noexcept { return view.size(); }
+};
+
+inline SanitizedCenters sanitize_centers(std::span<const vec3> centers, unsigned threads) {
+    SanitizedCenters s;
+    bool bad = false;
+    s.bounds = finite_point_bounds(centers, threads, &bad);
+    s.view = centers;
+    if (bad) {
+        s.copy.assign(centers.begin(), centers.end());
+        const vec3 fill = s.bounds.is_empty() ? vec3(0.0f) : s.bounds.center();
+        parallel_for(
+            s.copy.size(), threads, [&](std::size_t i) {
+                if (!is_finite(s.copy[i])) s.copy[i] = fill;
+            },
+            kMinParallelPass);
+        s.view = s.copy;
+        if (s.bounds.is_empty()) s.bounds = AABB::of_point(fill);
+    }
+    return s;
+}
+
+inline bool box_is_finite(const AABB& b) noexcept { return is_finite(b.min) && is_finite(b.max); }
+
+/// The box a builder reasons with: the primitive's own box when it is
+/// finite and non-empty, else the point box at its (sanitized) centroid.
+inline AABB working_box(const AABB& b, const vec3& sanitized_center) noexcept {
+    return (!b.is_empty() && box_is_finite(b)) ? b : AABB::of_point(sanitized_center);
+}
+
+/// Centre of a finite box without overflow.
+inline vec3 box_centre(const AABB& b) noexcept { return b.min * 0.5f + b.max * 0.5f; }
+
+/// Clamp of a non-negative float difference that overflowed.
+inline float clamp_extent(float e) noexcept { return e < kFloatMax ? e : kFloatMax; }
+
+}  // namespace raykit::detail
