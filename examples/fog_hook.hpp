@@ -85,18 +85,8 @@ void fog(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surfa
         const vec3 org = raykit::offset_ray_origin(s.p, s.ng);
         for (const raykit::Light& l : ctx.lights()) {
             vec3 ldir;
-            float tmax = raykit::kInf;
-            if (l.type == raykit::Light::Type::point) {
-                const vec3 to = l.position - org;
-                const float d = glm::length(to);
-                if (!(d > 0.0f)) continue;
-                ldir = to / d;
-                tmax = d * (1.0f - 1e-4f);
-            } else {
-                const float ll = glm::length(l.direction);
-                if (!(ll > 0.0f)) continue;
-                ldir = -l.direction / ll;
-            }
+            float tmax;
+            if (!raykit::light_ray(l, org, ldir, tmax)) continue;
             const float nl = glm::dot(s.ns, ldir);
             if (!(nl > 0.0f) || !(glm::dot(s.ng, ldir) > 0.0f)) continue;
             const vec3 c = w * (keep * nl) * s.base * l.color;

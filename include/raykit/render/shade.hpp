@@ -121,6 +121,25 @@ struct Light {
     static Light directional(vec3 dir, vec3 c = vec3(1.0f)) { return {Type::directional, vec3(0.0f), dir, c}; }
 };
 
+/// The shadow ray toward light `l` from `org`: unit direction `dir` and `tmax` = distance ·
+/// (1 - 1e-4) for a point light (the light's own position is not an occluder), infinity for a
+/// directional one. False for a degenerate light (at `org`, or a zero direction).
+inline bool light_ray(const Light& l, const vec3& org, vec3& dir, float& tmax) noexcept {
+    if (l.type == Light::Type::point) {
+        const vec3 to = l.position - org;
+        const float dist = glm::length(to);
+        if (!(dist > 0.0f)) return false;
+        dir = to / dist;
+        tmax = dist * (1.0f - 1e-4f);
+        return true;
+    }
+    const float ll = glm::length(l.direction);
+    if (!(ll > 0.0f)) return false;
+    dir = -l.direction / ll;
+    tmax = kInf;
+    return true;
+}
+
 struct ShadeSettings {
     ShaderKind shader = ShaderKind::whitted;
     unsigned max_depth = 5;        ///< reflection/refraction bounces after the camera ray (0 = none)
@@ -532,18 +551,8 @@ SampleResult shade_impl(const ShadeScene& s, const ShadeSettings& set, const Ray
             const bool want_spec = detail::max3(mat.ks) > 0.0f;
             for (const Light& l : s.lights) {
                 vec3 ldir;
-                float tmax = kInf;
-                if (l.type == Light::Type::point) {
-                    const vec3 to = l.position - org;
-                    const float dist = glm::length(to);
-                    if (!(dist > 0.0f)) continue;
-                    ldir = to / dist;
-                    tmax = dist * (1.0f - 1e-4f);
-                } else {
-                    const float ll = glm::length(l.direction);
-                    if (!(ll > 0.0f)) continue;
-                    ldir = -l.direction / ll;
-                }
+                float tmax;
+                if (!light_ray(l, org, ldir, tmax)) continue;
                 const float nl = glm::dot(sp.ns, ldir);
                 if (!(nl > 0.0f) || !(glm::dot(sp.ng, ldir) > 0.0f)) continue;
                 if (set.shadows) {

@@ -49,6 +49,23 @@ struct AcceptAll {
 template <class F>
 inline constexpr bool kFilters = !std::is_same_v<std::remove_cvref_t<F>, AcceptAll>;
 
+namespace detail {
+
+/// The closest-hit rule of every leaf store: candidate (t, u, v) of triangle p (already within
+/// tm) replaces `hit` when it is nearer, or as near with a smaller index, and `keep` accepts
+/// it; then tm shrinks to t. Returns whether it did.
+template <class Keep>
+RAYKIT_INLINE bool take_closer(Hit& hit, float& tm, float t, float u, float v, std::uint32_t p, const Keep& keep) {
+    if (!(t < hit.t || p < hit.prim)) return false;
+    if constexpr (kFilters<Keep>)
+        if (!keep(p, u, v)) return false;
+    hit = {t, u, v, p, 0};
+    tm = t;
+    return true;
+}
+
+}  // namespace detail
+
 /// Leaf store over an indexed mesh: slot k is triangle ids[k], tested with `Test`.
 template <class Test = DefaultTriangleTest>
 struct IndexedLeaves {
@@ -68,14 +85,8 @@ struct IndexedLeaves {
             const std::uint32_t p = ids[k];
             const Triangle& t = tris[p];
             TriHit th;
-            if (Test::intersect(rd, pos[t.v[0]], pos[t.v[1]], pos[t.v[2]], ray.tmin, tm, th) &&
-                (th.t < hit.t || p < hit.prim)) {
-                if constexpr (kFilters<Keep>)
-                    if (!keep(p, th.u, th.v)) continue;
-                hit = {th.t, th.u, th.v, p, 0};
-                tm = th.t;
-                found = true;
-            }
+            if (Test::intersect(rd, pos[t.v[0]], pos[t.v[1]], pos[t.v[2]], ray.tmin, tm, th))
+                found |= detail::take_closer(hit, tm, th.t, th.u, th.v, p, keep);
         }
         return found;
     }
@@ -114,14 +125,7 @@ struct BlockLeaves {
             while (m) {  // lanes in order, as a scalar loop over the leaf's triangles
                 const int i = std::countr_zero(m);
                 m &= m - 1;
-                const std::uint32_t p = blocks[k].prim[i];
-                if (t[i] <= tm && (t[i] < hit.t || p < hit.prim)) {
-                    if constexpr (kFilters<Keep>)
-                        if (!keep(p, u[i], v[i])) continue;
-                    hit = {t[i], u[i], v[i], p, 0};
-                    tm = t[i];
-                    found = true;
-                }
+                if (t[i] <= tm) found |= detail::take_closer(hit, tm, t[i], u[i], v[i], blocks[k].prim[i], keep);
             }
         }
         return found;
