@@ -127,67 +127,34 @@ RK_INLINE rk_ray rk_object_ray(__global const rk_instance* in, const rk_ray* r, 
     return o;
 }
 
+/* Stack entries of a walk: the top level's (at most RK_MAX_DEPTH) below the current object's
+   (at most RK_MAX_DEPTH). */
+#define RK_WALK_STACK (2 * RK_MAX_DEPTH)
+
 /* Closest hit (any == 0: *best improved in place, inst set; true when it was)
    or any hit (any != 0: true when something blocks) of `r` in [r->tmin, r->tmax]. */
 RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hit* best, const rk_filter* f,
                        uint* steps) {
     if (steps) *steps = 0u;
     float tmax = r->tmax;
-    uint st_node[2 * RK_MAX_DEPTH];
-    float st_t[2 * RK_MAX_DEPTH];
-    int sp = 0, floor = 0;      /* floor: the first stack entry of the current object's walk */
-    uint tcur = 0, cur = 0;     /* top-level / object node */
+    uint st_node[RK_WALK_STACK];
+    float st_t[RK_WALK_STACK];
+    int sp = 0;                 /* the top level's entries, then the current object's */
+    uint tcur = 0;              /* top-level node */
     uint leaf_k = 0, leaf_end = sc->mesh ? 1u : 0u;  /* instances of the top-level leaf still to walk */
-    bool in_object = false, top_pending = !sc->mesh, found = false;
+    bool top_pending = !sc->mesh, found = false;
     const rk_slab_ray top_s = rk_slab_prepare(r->org, r->dir, r->tmin);
     if (!sc->mesh) {
         float troot;
         if (sc->top_count == 0 || !rk_slab(&top_s, sc->top, tmax, &troot)) return false;
     }
-    rk_slab_ray s;
-    rk_wt_ray w;
-    rk_object ob;
-    uint inst = 0u, object = 0u;
-    __global const rk_node* nodes = sc->nodes;
-    __global const uint* prim_ids = sc->prim_ids;
-    __global const rk_triangle* tris = sc->tris;
-    __global const float* pos = sc->pos;
     for (;;) {
-        if (in_object) {
-            __global const rk_node* n = nodes + cur;
-            const uint index = n->index, count = n->count;
-            if (steps) ++*steps;
-            if (count != 0) {
-                for (uint k = index; k < index + count; ++k) {
-                    const uint p = prim_ids[k];
-                    const rk_triangle t = tris[p];
-                    const float3 p0 = vload3(t.v[0], pos), p1 = vload3(t.v[1], pos), p2 = vload3(t.v[2], pos);
-                    rk_hit c;
-                    if (!rk_wt_intersect(&w, p0, p1, p2, r->tmin, tmax, &c.t, &c.u, &c.v)) continue;
-                    c.prim = p;
-                    c.inst = inst;
-                    if (!any && !rk_closer(&c, best)) continue;
-#ifdef RK_LEAF_FILTER
-                    if (f && !rk_keep(f, object, &ob, p, c.u, c.v)) continue;
-#endif
-                    if (any) return true;
-                    *best = c;
-                    tmax = c.t;
-                    found = true;
-                }
-            } else {
-                const int step = rk_descend(&s, nodes, index, tmax, &cur, st_node, st_t, &sp, floor + RK_MAX_DEPTH);
-                if (step < 0) return found;
-                if (step > 0) continue;
-            }
-            if (rk_pop(&cur, st_node, st_t, &sp, floor, tmax)) continue;
-            in_object = false;
-        }
-        if (leaf_k < leaf_end) {  /* enter the next instance of the top-level leaf */
+        if (leaf_k < leaf_end) {  /* the next instance of the top-level leaf: its object's walk */
             rk_ray o = *r;
+            rk_object ob;
+            uint inst = 0u, object = 0u;
             if (sc->mesh) {
                 ob = sc->mesh_object;
-                inst = 0u;
             } else {
                 inst = sc->top_ids[leaf_k];
                 __global const rk_instance* in = sc->instances + inst;
@@ -197,17 +164,49 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
             }
             ++leaf_k;
             if (ob.node_count == 0) continue;
-            nodes = sc->nodes + ob.node_offset;
-            prim_ids = sc->prim_ids + ob.prim_offset;
-            tris = sc->tris + ob.triangle_offset;
-            pos = sc->pos + (size_t)3 * ob.vertex_offset;
-            s = rk_slab_prepare(o.org, o.dir, o.tmin);
-            w = rk_wt_prepare(o.org, o.dir);
+            __global const rk_node* restrict nodes = sc->nodes + ob.node_offset;
+            __global const uint* restrict prim_ids = sc->prim_ids + ob.prim_offset;
+            __global const rk_triangle* restrict tris = sc->tris + ob.triangle_offset;
+            __global const float* restrict pos = sc->pos + (size_t)3 * ob.vertex_offset;
+            const rk_slab_ray s = rk_slab_prepare(o.org, o.dir, o.tmin);
+            const rk_wt_ray w = rk_wt_prepare(o.org, o.dir);
             float troot;
             if (!rk_slab(&s, nodes, tmax, &troot)) continue;
-            in_object = true;
-            floor = sp;
-            cur = 0u;
+            const int floor = sp;  /* the object's stack entries start here */
+            uint cur = 0u;
+            for (;;) {
+                __global const rk_node* n = nodes + cur;
+                const uint index = n->index, count = n->count;
+                if (steps) ++*steps;
+                if (count != 0) {
+                    for (uint k = index; k < index + count; ++k) {
+                        const uint p = prim_ids[k];
+                        const rk_triangle t = tris[p];
+                        const float3 p0 = vload3(t.v[0], pos), p1 = vload3(t.v[1], pos), p2 = vload3(t.v[2], pos);
+                        float th, uh, vh;
+                        if (!rk_wt_intersect(&w, p0, p1, p2, r->tmin, tmax, &th, &uh, &vh)) continue;
+                        /* Hit::closer_than against the best so far (th <= tmax = best->t when there is one) */
+                        if (!any && !(th < best->t || inst < best->inst || (inst == best->inst && p < best->prim)))
+                            continue;
+#ifdef RK_LEAF_FILTER
+                        if (f && !rk_keep(f, object, &ob, p, uh, vh)) continue;
+#endif
+                        if (any) return true;
+                        best->t = th;
+                        best->u = uh;
+                        best->v = vh;
+                        best->prim = p;
+                        best->inst = inst;
+                        tmax = th;
+                        found = true;
+                    }
+                } else {
+                    const int step = rk_descend(&s, nodes, index, tmax, &cur, st_node, st_t, &sp, floor + RK_MAX_DEPTH);
+                    if (step < 0) return found;
+                    if (step > 0) continue;
+                }
+                if (!rk_pop(&cur, st_node, st_t, &sp, floor, tmax)) break;
+            }
             continue;
         }
         if (sc->mesh) return found;
