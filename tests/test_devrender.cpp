@@ -109,14 +109,18 @@ Texture checker(std::uint32_t w, std::uint32_t h) {
     return make_texture(w, h, std::move(px), true);
 }
 
-/// A test scene: a textured floor (uv 0..3: wraps), a diffuse-specular sphere, a mirror
-/// sphere, a glass box, an emissive panel; two lights (point and directional).
-struct TestScene {
-    Texture tex = checker(7, 5);
+/// A scene, its camera and the texture its tables point to (which must live as long).
+struct TexturedScene {
+    Texture tex;
     RenderScene rs;
     Camera cam;
+    explicit TexturedScene(Texture t) : tex(std::move(t)) {}
+};
 
-    TestScene() {
+/// A test scene: a textured floor (uv 0..3: wraps), a diffuse-specular sphere, a mirror
+/// sphere, a glass box, an emissive panel; two lights (point and directional).
+struct TestScene : TexturedScene {
+    TestScene() : TexturedScene(checker(7, 5)) {
         SceneBuilder b;
         const auto floor = b.material(make_material(vec3(0.9f)));
         const auto shiny = b.material(make_material(vec3(0.6f, 0.3f, 0.2f), vec3(0.4f), 30.0f));
@@ -289,12 +293,8 @@ mat4 place(vec3 shift, float degrees, vec3 axis, vec3 scale) {
 /// vertex normals (object 1: translated; rotated past pi and scaled), a torus without normals
 /// in mirror and glass (object 2: rotated past pi with a non-uniform scale; rotated and
 /// scaled again). Each object has its own material table.
-struct InstancedScene {
-    Texture tex = checker(9, 6);
-    RenderScene rs;
-    Camera cam;
-
-    InstancedScene() {
+struct InstancedScene : TexturedScene {
+    InstancedScene() : TexturedScene(checker(9, 6)) {
         SceneBuilder f;
         const auto fm = f.material(make_material(vec3(0.8f)));
         f.quad({-4, 0, -4}, {4, 0, -4}, {4, 0, 4}, {-4, 0, 4}, fm, 2.0f);

@@ -242,6 +242,36 @@ RK_INLINE float rk_frac(float a) {
 }
 RK_INLINE uint rk_wrap(long i, uint n) { return (uint)(i < 0 ? i + (long)n : (i >= (long)n ? i - (long)n : i)); }
 
+/* Where raykit::Texture::sample reads (colour and alpha alike): nearest (filter 1) the texel
+   (x0, y0); bilinear the texels x0|x1, y0|y1 weighted by ax, ay (wrap addressing). Rows are
+   counted from the top of the file, v from the bottom. The texture must not be empty. */
+typedef struct {
+    uint x0, x1, y0, y1;
+    float ax, ay;
+} rk_taps;
+
+RK_INLINE rk_taps rk_texture_taps(const rk_texture* t, float2 uv, uint filter) {
+    rk_taps q;
+    if (filter == 1u) {
+        const float u = rk_frac(uv.x), v = rk_frac(uv.y);
+        q.x0 = q.x1 = min((uint)(u * (float)t->width), t->width - 1);
+        q.y0 = q.y1 = t->height - 1 - min((uint)(v * (float)t->height), t->height - 1);
+        q.ax = q.ay = 0.0f;
+        return q;
+    }
+    const float fx = rk_frac(uv.x) * (float)t->width - 0.5f;
+    const float fy = rk_frac(uv.y) * (float)t->height - 0.5f;
+    const float flx = floor(fx), fly = floor(fy);
+    q.ax = fx - flx;
+    q.ay = fy - fly;
+    const long ix = (long)flx, iy = (long)fly;
+    q.x0 = rk_wrap(ix, t->width);
+    q.x1 = rk_wrap(ix + 1, t->width);
+    q.y0 = t->height - 1 - rk_wrap(iy, t->height);
+    q.y1 = t->height - 1 - rk_wrap(iy + 1, t->height);
+    return q;
+}
+
 #ifdef RK_LEAF_FILTER
 /* ---- alpha cut-outs, the walk's leaf filter (kernels/raykit/kernels/trace.hpp): the twins of
    raykit::detail::cut_out and Texture::sample_alpha. Compiled only for scenes with cut-outs. */
@@ -265,22 +295,11 @@ RK_INLINE float rk_texture_alpha(const rk_filter* a, int texture, float2 uv) {
     const rk_texture t = a->textures[texture];
     if (t.width == 0 || t.height == 0) return 1.0f;
     const float k = 1.0f / 255.0f;
-    if (a->filter == 1u) {
-        const float u = rk_frac(uv.x), v = rk_frac(uv.y);
-        const uint x = min((uint)(u * (float)t.width), t.width - 1);
-        const uint yu = min((uint)(v * (float)t.height), t.height - 1);
-        return rk_alpha_byte(a, &t, x, t.height - 1 - yu) * k;
-    }
-    const float fx = rk_frac(uv.x) * (float)t.width - 0.5f;
-    const float fy = rk_frac(uv.y) * (float)t.height - 0.5f;
-    const float flx = floor(fx), fly = floor(fy);
-    const float ax = fx - flx, ay = fy - fly;
-    const long ix = (long)flx, iy = (long)fly;
-    const uint x0 = rk_wrap(ix, t.width), x1 = rk_wrap(ix + 1, t.width);
-    const uint y0 = t.height - 1 - rk_wrap(iy, t.height), y1 = t.height - 1 - rk_wrap(iy + 1, t.height);
-    const float va = rk_alpha_byte(a, &t, x0, y0), vb = rk_alpha_byte(a, &t, x1, y0);
-    const float vc = rk_alpha_byte(a, &t, x0, y1), vd = rk_alpha_byte(a, &t, x1, y1);
-    return ((va * (1.0f - ax) + vb * ax) * (1.0f - ay) + (vc * (1.0f - ax) + vd * ax) * ay) * k;
+    const rk_taps q = rk_texture_taps(&t, uv, a->filter);
+    if (a->filter == 1u) return rk_alpha_byte(a, &t, q.x0, q.y0) * k;
+    const float va = rk_alpha_byte(a, &t, q.x0, q.y0), vb = rk_alpha_byte(a, &t, q.x1, q.y0);
+    const float vc = rk_alpha_byte(a, &t, q.x0, q.y1), vd = rk_alpha_byte(a, &t, q.x1, q.y1);
+    return ((va * (1.0f - q.ax) + vb * q.ax) * (1.0f - q.ay) + (vc * (1.0f - q.ax) + vd * q.ax) * q.ay) * k;
 }
 
 /* False when the hit (prim, u, v) of object `object` lies on a cut-out texel of an
@@ -449,22 +468,11 @@ RK_INLINE float4 rk_texture_sample(const rk_ctx* ctx, int texture, float2 uv) {
     if (texture < 0) return (float4)(1.0f);
     const rk_texture t = ctx->textures[texture];
     if (t.width == 0 || t.height == 0) return (float4)(0.0f);
-    if (ctx->set.filter == 1u) {
-        const float u = rk_frac(uv.x), v = rk_frac(uv.y);
-        const uint x = min((uint)(u * (float)t.width), t.width - 1);
-        const uint yu = min((uint)(v * (float)t.height), t.height - 1);
-        return rk_texel(ctx, &t, x, t.height - 1 - yu);
-    }
-    const float fx = rk_frac(uv.x) * (float)t.width - 0.5f;
-    const float fy = rk_frac(uv.y) * (float)t.height - 0.5f;
-    const float flx = floor(fx), fly = floor(fy);
-    const float ax = fx - flx, ay = fy - fly;
-    const long ix = (long)flx, iy = (long)fly;
-    const uint x0 = rk_wrap(ix, t.width), x1 = rk_wrap(ix + 1, t.width);
-    const uint y0 = t.height - 1 - rk_wrap(iy, t.height), y1 = t.height - 1 - rk_wrap(iy + 1, t.height);
-    const float4 a = rk_texel(ctx, &t, x0, y0), b = rk_texel(ctx, &t, x1, y0);
-    const float4 c = rk_texel(ctx, &t, x0, y1), d = rk_texel(ctx, &t, x1, y1);
-    return (a * (1.0f - ax) + b * ax) * (1.0f - ay) + (c * (1.0f - ax) + d * ax) * ay;
+    const rk_taps q = rk_texture_taps(&t, uv, ctx->set.filter);
+    if (ctx->set.filter == 1u) return rk_texel(ctx, &t, q.x0, q.y0);
+    const float4 a = rk_texel(ctx, &t, q.x0, q.y0), b = rk_texel(ctx, &t, q.x1, q.y0);
+    const float4 c = rk_texel(ctx, &t, q.x0, q.y1), d = rk_texel(ctx, &t, q.x1, q.y1);
+    return (a * (1.0f - q.ax) + b * q.ax) * (1.0f - q.ay) + (c * (1.0f - q.ax) + d * q.ax) * q.ay;
 }
 
 /* ---- the surface at a hit: the twin of raykit::surface_point */

@@ -5,12 +5,12 @@
 // (nearer child first, the left one on equal entry distances), the same
 // pruning (a popped node is skipped when its entry is beyond
 // tmax·RK_SLAB_EXIT_SCALE), the same tie rule (smaller t, then smaller
-// instance, then smaller triangle). Both levels are walked by one loop: a
-// top-level leaf enters its instances one after the other (the ray mapped
-// into the object's space, an identity instance's ray used as it is), each
-// object's walk runs on the same stack above the top level's entries and,
-// when its stack part is empty, hands back to the next instance or the top
-// level. A plain mesh is the walk of one object with no top level (mesh
+// instance, then smaller triangle). Both levels are walked by one function:
+// a top-level leaf enters its instances one after the other (the ray mapped
+// into the object's space, an identity instance's ray used as it is); each
+// object's walk is an inner loop (the hot one, as tight as a plain mesh
+// walk) on the same stack above the top level's entries and, when its part
+// of the stack is empty, hands back to the next instance or the top level. A plain mesh is the walk of one object with no top level (mesh
 // mode). Each level's stack holds RK_MAX_DEPTH entries; the CPU throws on a
 // deeper tree, here the walk stops with the hits found so far (raykit's
 // builders never emit such trees).
