@@ -91,6 +91,7 @@ public:
     DeviceSceneArrays(const DeviceSceneArrays&) = delete;
     DeviceSceneArrays& operator=(const DeviceSceneArrays&) = delete;
 
+    /// The device its arrays live on.
     Device& device() const noexcept { return *dev_; }
     /// The Scene it mirrors (instances are read from it at each update()).
     const Scene& scene() const noexcept { return *scene_; }
@@ -101,17 +102,26 @@ public:
     /// The top-level tree of the last update().
     const Bvh& top_level() const noexcept { return top_; }
 
-    /// The concatenated object arrays (see ObjectRecord) and the top level, as kernels bind them.
+    // The arrays as kernels bind them (kernels/raykit/kernels/trace.hpp's RK_SCENE_PARAMS order).
+    /// Every object's tree nodes, at its node_offset.
     const Buffer<Node>& nodes() const noexcept { return nodes_; }
+    /// Every object's prim_ids, at its prim_offset.
     const Buffer<std::uint32_t>& prim_ids() const noexcept { return prim_ids_; }
+    /// Every object's triangles (vertex indices relative to the object), at its triangle_offset.
     const Buffer<Triangle>& triangles() const noexcept { return triangles_; }
+    /// Every object's current positions (3 floats each), at its vertex_offset.
     const Buffer<float>& positions() const noexcept { return positions_; }
     /// Every object's vertex records at its vertex_offset (moved ones as last moved).
     const Buffer<Vertex>& vertices() const noexcept { return vertices_; }
+    /// One ObjectRecord per object, in object order.
     const Buffer<ObjectRecord>& objects() const noexcept { return objects_; }
+    /// The top-level tree's nodes (top_count() of them) as of the last update().
     const Buffer<Node>& top_nodes() const noexcept { return top_nodes_; }
+    /// The top-level tree's leaf slots: instance indices.
     const Buffer<std::uint32_t>& top_ids() const noexcept { return top_ids_; }
+    /// One InstanceRecord per instance, as of the last update().
     const Buffer<InstanceRecord>& instances() const noexcept { return instances_; }
+    /// Nodes of the top-level tree (0: nothing to trace).
     std::uint32_t top_count() const noexcept { return top_count_; }
 
     /// Throws std::logic_error unless update() ran and no instance was added since.

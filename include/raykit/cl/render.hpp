@@ -207,9 +207,9 @@ static_assert(sizeof(RenderSettingsRecord) == 96 && offsetof(RenderSettingsRecor
 /// Per-object shading data (rk_shade_object): the object's slice of the concatenated material
 /// table (its default material last) and of the material ids, and what its vertices carry.
 struct ShadeObjectRecord {
-    std::uint32_t material_offset = 0;
-    std::uint32_t material_count = 0;
-    std::uint32_t material_id_count = 0;
+    std::uint32_t material_offset = 0;    ///< its first material in the concatenated table
+    std::uint32_t material_count = 0;     ///< its table's size, the default material (last) included
+    std::uint32_t material_id_count = 0;  ///< its triangles with a material id
     std::uint32_t flags = 0;  ///< kShadeNormals | kShadeUvs
 };
 static_assert(sizeof(ShadeObjectRecord) == 16 && offsetof(ShadeObjectRecord, material_count) == 4 &&

@@ -10,19 +10,21 @@
 // into the object's space, an identity instance's ray used as it is); each
 // object's walk is an inner loop (the hot one, as tight as a plain mesh
 // walk) on the same stack above the top level's entries and, when its part
-// of the stack is empty, hands back to the next instance or the top level. A plain mesh is the walk of one object with no top level (mesh
-// mode). Each level's stack holds RK_MAX_DEPTH entries; the CPU throws on a
-// deeper tree, here the walk stops with the hits found so far (raykit's
-// builders never emit such trees).
+// of the stack is empty, hands back to the next instance or the top level.
+// A plain mesh is the walk of one object with no top level (mesh mode).
+// Each level's stack holds RK_MAX_DEPTH entries; the CPU throws on a deeper
+// tree, here the walk stops with the hits found so far (raykit's builders
+// never emit such trees).
 //
 // Leaf filter: when the program defines RK_LEAF_FILTER (before this part) it
 // also defines the type rk_filter and
 //   bool rk_keep(const rk_filter* f, uint object, const rk_object* ob, uint prim, float u, float v)
 // which rejects candidate hits (the renderer's alpha cut-outs; a walk given
 // no filter, f == 0, keeps every hit); without it nothing of the filter is
-// compiled. Traversal steps: with `steps` not 0 the
-// inner nodes + leaves of the bottom-level trees visited are counted there
-// (raykit::TraversalStats of a Scene query: the top level is not counted).
+// compiled, so scenes without cut-outs pay nothing. Traversal steps: with
+// `steps` not 0 the inner nodes + leaves of the bottom-level trees visited
+// are counted there (raykit::TraversalStats of a Scene query: the top level
+// is not counted).
 //
 // Kernels (one work-item per ray, n = number of rays):
 //   rk_mesh_closest / rk_mesh_any     one mesh: hits[i] (inst 0) / occluded[i] (1 or 0)
