@@ -75,6 +75,7 @@
 
 namespace raykit::kernels {
 
+/// The renderer's crossing structs, per-object material lookup and cut-out filter (before trace.hpp).
 inline constexpr const char* kShadeData = R"CLC(
 /* Path ray of a bounce queue (raykit::cl::PathRay). */
 typedef struct {
