@@ -599,6 +599,17 @@ TEST(CliAnimate, GoblinFrameIsNotBlack) {
     EXPECT_GT(c.lit, c.total / 100) << "the goblin renders black";
 }
 
+/// A directory tmpdir()/name holding skin.bmp (write_centre_red_bmp), cube.smd (the textured
+/// cube) and anim.smd (`anim_smd`), for animate runs.
+static fs::path write_cube_animation(const std::string& name, const std::string& anim_smd) {
+    const fs::path dir = tmpdir() / name;
+    fs::create_directories(dir);
+    write_centre_red_bmp(dir / "skin.bmp");
+    write(dir / "cube.smd", textured_cube_smd("skin.bmp"));
+    write(dir / "anim.smd", anim_smd);
+    return dir;
+}
+
 #if RAYKIT_CLI_HAVE_CL
 /// Pixels of two PNGs of one size where some channel differs by more than 2/255 (all when the
 /// sizes differ), and how many pixels each has.
@@ -617,12 +628,9 @@ static std::pair<std::size_t, std::size_t> png_pixels_apart(const fs::path& a, c
 TEST(CliAnimate, DeviceFramesEqualTheCpuFrames) {
     // --device cl runs the whole frame on the device (skinning, refit, top level, render);
     // its frames are the CPU's within the device renderer's tolerance (<= 2/255 on >= 99.9 %)
-    const fs::path dir = tmpdir() / "animate_device";
-    fs::create_directories(dir);
-    write_centre_red_bmp(dir / "skin.bmp");
-    const fs::path ref = dir / "cube.smd", anim = dir / "moving.smd";
-    write(ref, textured_cube_smd("skin.bmp"));
-    write(anim, "nodes\n0 \"root\" -1\nend\nskeleton\ntime 0\n0 0 0 0 0 0 0\ntime 1\n0 0.3 0 0.2 0.4 0.3 0.5\nend\n");
+    const fs::path dir = write_cube_animation(
+        "animate_device", "nodes\n0 \"root\" -1\nend\nskeleton\ntime 0\n0 0 0 0 0 0 0\ntime 1\n0 0.3 0 0.2 0.4 0.3 0.5\nend\n");
+    const fs::path ref = dir / "cube.smd", anim = dir / "anim.smd";
     std::vector<std::string> runs = {"animate " + ref.string() + " " + anim.string() + " " + (dir / "@_%d.png").string() +
                                      " --width 64 --height 48 --camera 2.5 2.5 2.5 0 0.9 0 --fps 2"};
 #ifdef RAYKIT_SHARED_DATA_DIR
@@ -659,13 +667,10 @@ TEST(CliAnimate, DeviceFramesEqualTheCpuFrames) {
 #endif
 
 TEST(CliAnimate, OutputPatternNamesEveryFrame) {
-    const fs::path dir = tmpdir() / "animate_pattern";
-    fs::create_directories(dir);
-    write_centre_red_bmp(dir / "skin.bmp");
-    const fs::path ref = dir / "cube.smd", anim = dir / "gapped.smd";
-    write(ref, textured_cube_smd("skin.bmp"));
     // Keys at times 4 and 6: three frames (the middle one holds the first key).
-    write(anim, "nodes\n0 \"root\" -1\nend\nskeleton\ntime 4\n0 0 0 0 0 0 0\ntime 6\n0 0 0 1 0 0 0.5\nend\n");
+    const fs::path dir = write_cube_animation(
+        "animate_pattern", "nodes\n0 \"root\" -1\nend\nskeleton\ntime 4\n0 0 0 0 0 0 0\ntime 6\n0 0 0 1 0 0 0.5\nend\n");
+    const fs::path ref = dir / "cube.smd", anim = dir / "anim.smd";
     const std::string base = "animate " + ref.string() + " " + anim.string() + " ";
     const std::string small = " --width 16 --height 12";
     expect_clean_error(run(base + (dir / "f_%3000000000d.png").string() + small), 2, "field width 3000000000");
