@@ -155,6 +155,7 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
             rk_ray o = *r;
             rk_object ob;
             uint inst = 0u, object = 0u;
+            bool mapped = false;  /* the ray differs from the world ray (else top_s serves) */
             if (sc->mesh) {
                 ob = sc->mesh_object;
             } else {
@@ -163,6 +164,7 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
                 object = in->object;
                 ob = sc->objects[object];
                 o = rk_object_ray(in, r, tmax);
+                mapped = !in->identity;
             }
             ++leaf_k;
             if (ob.node_count == 0) continue;
@@ -170,7 +172,7 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
             __global const uint* restrict prim_ids = sc->prim_ids + ob.prim_offset;
             __global const rk_triangle* restrict tris = sc->tris + ob.triangle_offset;
             __global const float* restrict pos = sc->pos + (size_t)3 * ob.vertex_offset;
-            const rk_slab_ray s = rk_slab_prepare(o.org, o.dir, o.tmin);
+            const rk_slab_ray s = mapped ? rk_slab_prepare(o.org, o.dir, o.tmin) : top_s;
             const rk_wt_ray w = rk_wt_prepare(o.org, o.dir);
             float troot;
             if (!rk_slab(&s, nodes, tmax, &troot)) continue;
