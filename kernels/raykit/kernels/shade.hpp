@@ -519,8 +519,8 @@ RK_INLINE rk_surface rk_surface_at(const rk_ctx* ctx, __global const rk_instance
     int entering = dot(ng, d) < 0.0f;
     float3 ns = ng;
     if (so.flags & RK_SHADE_NORMALS) {
-        const float3 n = rk_normal_to_world(in, rk_vertex_normal(vx[t.v[0]]) * w0 + rk_vertex_normal(vx[t.v[1]]) * h->u +
-                                                    rk_vertex_normal(vx[t.v[2]]) * h->v);
+        const float3 n = rk_normal_to_world(in, vload3(0, vx[t.v[0]].normal) * w0 + vload3(0, vx[t.v[1]].normal) * h->u +
+                                                    vload3(0, vx[t.v[2]].normal) * h->v);
         const float ln = length(n);
         if (ln > 1e-12f && isfinite(ln)) {
             ns = n / ln;
