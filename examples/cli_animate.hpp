@@ -34,17 +34,19 @@
 //   interpolate  sample_frame (slerp) + skin_matrices
 //   skin         the vertex stage. CPU: SkinHook's CPU twin on every vertex.
 //                cl: the matrices uploaded, SkinHook run by a
-//                raykit::cl::DeviceScene<SkinHook>, the vertices read back.
-//   refit        the character's trees refitted in place (binary and 8-wide
-//                blocks), or rebuilt when the RebuildPolicy (threshold 1.15)
-//                says so
+//                raykit::cl::DeviceScene<SkinHook>.
+//   refit        the character's trees refitted in place (CPU: binary and
+//                8-wide blocks, or rebuilt when the RebuildPolicy (threshold
+//                1.15) says so; cl: its binary tree on the device)
 //   top          the top-level tree over the two instances
-//   trace/shade  the render stage split by thread time (FrameLoop)
-//   sah          SAH growth of the character's refitted tree over its last
-//                build; decision "refit" or "rebuild".
-// With --device cl only the vertex stage runs on the device: the device
-// renderer still takes one mesh (issue 13's remaining step), so the frame is
-// rendered by the CPU from the read-back vertices.
+//   trace/shade  the render stage: CPU split by thread time (FrameLoop); cl:
+//                device time of the closest-hit + shadow kernels / of the
+//                shade kernels (raykit::cl::DeviceRenderer)
+//   sah          CPU: SAH growth of the character's refitted tree over its
+//                last build; decision "refit" or "rebuild" (cl: always refit,
+//                no growth measured).
+// With --device cl the whole frame runs on the device (DeviceScene update,
+// then DeviceRenderer over it): no vertex is read back, only the image.
 //
 // Entry point:
 //   int raykit_cli_animate(int argc, char** argv, int first_arg);
@@ -94,6 +96,7 @@
 #include "cli_render.hpp"  // the render flags' shared limits (kMaxPixels)
 #if RAYKIT_CLI_HAVE_CL
 #include "raykit/cl.hpp"
+#include "raykit/cl/render.hpp"
 #endif
 
 /// Bad command-line usage of `raykit animate` (exit code 2).
@@ -413,14 +416,16 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
 
 #if RAYKIT_CLI_HAVE_CL
     std::optional<raykit::cl::DeviceScene<SkinHook>> ds;
+    std::optional<raykit::cl::DeviceRenderer> renderer;
     if (a.device_cl) {
         ds.emplace(raykit::cl::Device::shared(), rs.scene);
         upload_skin(*ds, rs.scene, body, skin);
+        renderer.emplace(*ds, rs.materials, rs.lights);
     }
 #endif
     const bool on_device = a.device_cl;
     std::printf("device: %s   static triangles: %u   character: %zu vertices, %zu triangles, %zu bones\n",
-                on_device ? "cl (skinning on the device, read back; refit and render on the CPU)" : "cpu", static_tris,
+                on_device ? "cl (skinning, refit, top level and render on the device)" : "cpu", static_tris,
                 nv, cm.triangles.size(), model.bones.size());
     std::printf("%6s %8s %8s %8s %8s %8s %8s %8s %7s  %s\n", "frame", "anim_f", "interp", "skin", "refit", "top",
                 "trace", "shade", "sah", "decision");
@@ -430,24 +435,31 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
         const auto t = clock::now();
         const std::vector<SkinMatrix> mats = matrices_at(k, &af);
         const double interp_ms = ms(t);
+        Image img;
+        FrameStats st;
         if (!on_device) {
             const SkinHook::Host host{skin.offsets, skin.links, mats};
             loop.update(vertex_hook(
                 [&](std::uint32_t, const Vertex& v, std::uint32_t i) { return SkinHook::apply(v, i, {}, host); },
                 a.threads));
+            img = loop.render(cam);
+            st = loop.last();
         }
 #if RAYKIT_CLI_HAVE_CL
         else {
-            loop.update([&](Scene& sc, std::uint32_t object) {
-                upload_skin_matrices(*ds, std::span<const SkinMatrix>(mats));
-                (void)ds->update();
-                const std::vector<Vertex> moved = ds->moved_vertices(object);
-                sc.write_vertices(object, [&](const Vertex&, std::uint32_t i) { return moved[i]; }, a.threads);
-            });
+            const auto t_upload = clock::now();
+            upload_skin_matrices(*ds, std::span<const SkinMatrix>(mats));
+            const double upload_ms = ms(t_upload);
+            const raykit::cl::FrameTimes ft = ds->update(raykit::cl::RefitMethod::one_pass, TopLevelUpdate::refit);
+            raykit::cl::DeviceRenderStats drs;
+            img = renderer->render(cam, set, &drs);
+            st.ms.vertex = upload_ms + ft.vertex_ms;
+            st.ms.refit = ft.refit_ms;
+            st.ms.top = ft.top_level_ms;
+            st.ms.trace = drs.trace_ms + drs.shadow_ms;
+            st.ms.shade = drs.shade_ms;
         }
 #endif
-        const Image img = loop.render(cam);
-        const FrameStats& st = loop.last();
         write_png(img, raykit_cli::animate_frame_name(a.output, a.first + k));
         std::printf("%6ld %8.2f %8.3f %8.3f %8.3f %8.3f %8.2f %8.2f %7.3f  %s\n", a.first + k, af, interp_ms,
                     st.ms.vertex, st.ms.refit, st.ms.top, st.ms.trace, st.ms.shade, st.worst_growth,

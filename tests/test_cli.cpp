@@ -2,6 +2,7 @@
 // trace output checked against brute force over all triangles.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -598,14 +599,78 @@ TEST(CliAnimate, GoblinFrameIsNotBlack) {
     EXPECT_GT(c.lit, c.total / 100) << "the goblin renders black";
 }
 
-TEST(CliAnimate, OutputPatternNamesEveryFrame) {
-    const fs::path dir = tmpdir() / "animate_pattern";
+/// A directory tmpdir()/name holding skin.bmp (write_centre_red_bmp), cube.smd (the textured
+/// cube) and anim.smd (`anim_smd`), for animate runs.
+static fs::path write_cube_animation(const std::string& name, const std::string& anim_smd) {
+    const fs::path dir = tmpdir() / name;
     fs::create_directories(dir);
     write_centre_red_bmp(dir / "skin.bmp");
-    const fs::path ref = dir / "cube.smd", anim = dir / "gapped.smd";
-    write(ref, textured_cube_smd("skin.bmp"));
+    write(dir / "cube.smd", textured_cube_smd("skin.bmp"));
+    write(dir / "anim.smd", anim_smd);
+    return dir;
+}
+
+#if RAYKIT_CLI_HAVE_CL
+/// Pixels of two PNGs of one size where some channel differs by more than 2/255 (all when the
+/// sizes differ), and how many pixels each has.
+static std::pair<std::size_t, std::size_t> png_pixels_apart(const fs::path& a, const fs::path& b) {
+    const Texture x = load_texture(a, /*srgb=*/false), y = load_texture(b, /*srgb=*/false);
+    if (x.rgba.size() != y.rgba.size() || x.placeholder || y.placeholder) return {x.rgba.size() / 4 + 1, x.rgba.size() / 4};
+    std::size_t bad = 0;
+    for (std::size_t i = 0; i + 3 < x.rgba.size(); i += 4) {
+        int worst = 0;
+        for (int c = 0; c < 4; ++c) worst = std::max(worst, std::abs(int(x.rgba[i + c]) - int(y.rgba[i + c])));
+        bad += worst > 2;
+    }
+    return {bad, x.rgba.size() / 4};
+}
+
+TEST(CliAnimate, DeviceFramesEqualTheCpuFrames) {
+    // --device cl runs the whole frame on the device (skinning, refit, top level, render);
+    // its frames are the CPU's within the device renderer's tolerance (<= 2/255 on >= 99.9 %)
+    const fs::path dir = write_cube_animation(
+        "animate_device", "nodes\n0 \"root\" -1\nend\nskeleton\ntime 0\n0 0 0 0 0 0 0\ntime 1\n0 0.3 0 0.2 0.4 0.3 0.5\nend\n");
+    const fs::path ref = dir / "cube.smd", anim = dir / "anim.smd";
+    std::vector<std::string> runs = {"animate " + ref.string() + " " + anim.string() + " " + (dir / "@_%d.png").string() +
+                                     " --width 64 --height 48 --camera 2.5 2.5 2.5 0 0.9 0 --fps 2"};
+#ifdef RAYKIT_SHARED_DATA_DIR
+    const fs::path goblin = fs::path(RAYKIT_SHARED_DATA_DIR) / "smd" / "hl2_goblin";
+    const fs::path thesis = fs::path(RAYKIT_SHARED_DATA_DIR) / "obj" / "thesis_scene" / "Scene.obj";
+    if (fs::exists(goblin / "Goblin_Reference.smd") && fs::exists(thesis))
+        runs.push_back("animate " + (goblin / "Goblin_Reference.smd").string() + " " +
+                       (goblin / "Goblin_Anim.smd").string() + " " + (dir / "goblin_@_%d.png").string() +
+                       " --scene " + thesis.string() + " --first 100 --frames 2 --width 96 --height 72");
+#endif
+    for (const std::string& cmd : runs) {
+        std::vector<std::string> names;
+        for (const char* device : {"cpu", "cl"}) {
+            std::string c = cmd;
+            c.replace(c.find('@'), 1, device);
+            const Result r = run(c + " --device " + device);
+            if (r.code != 0 && r.err.find("no OpenCL") != std::string::npos) GTEST_SKIP() << r.err;
+            ASSERT_EQ(r.code, 0) << c << ": " << r.err;
+        }
+        const std::string prefix = cmd.find("goblin_@") != std::string::npos ? "goblin_" : "";
+        const int first = prefix.empty() ? 0 : 100;
+        for (int k = first; k < first + 2; ++k) {
+            const std::string n = std::to_string(k) + ".png";
+            const auto [bad, total] = png_pixels_apart(dir / (prefix + "cpu_" + n), dir / (prefix + "cl_" + n));
+            EXPECT_GT(total, 0u) << prefix << n;
+            EXPECT_LE(double(bad), 1e-3 * double(total)) << prefix << n << ": " << bad << " of " << total
+                                                          << " pixels differ by more than 2/255";
+        }
+        EXPECT_NE(png_pixels_apart(dir / (prefix + "cl_" + std::to_string(first) + ".png"),
+                                   dir / (prefix + "cl_" + std::to_string(first + 1) + ".png")).first, 0u)
+            << prefix << ": the frames should differ (the animation moves)";
+    }
+}
+#endif
+
+TEST(CliAnimate, OutputPatternNamesEveryFrame) {
     // Keys at times 4 and 6: three frames (the middle one holds the first key).
-    write(anim, "nodes\n0 \"root\" -1\nend\nskeleton\ntime 4\n0 0 0 0 0 0 0\ntime 6\n0 0 0 1 0 0 0.5\nend\n");
+    const fs::path dir = write_cube_animation(
+        "animate_pattern", "nodes\n0 \"root\" -1\nend\nskeleton\ntime 4\n0 0 0 0 0 0 0\ntime 6\n0 0 0 1 0 0 0.5\nend\n");
+    const fs::path ref = dir / "cube.smd", anim = dir / "anim.smd";
     const std::string base = "animate " + ref.string() + " " + anim.string() + " ";
     const std::string small = " --width 16 --height 12";
     expect_clean_error(run(base + (dir / "f_%3000000000d.png").string() + small), 2, "field width 3000000000");

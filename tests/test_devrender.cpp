@@ -5,7 +5,10 @@
 // on the thesis scene when the shared data is there. debug-cost must agree exactly (the same
 // traversal steps), camera rays bit for bit (PixelSampler). Plus ray hooks: a build error names
 // the hook's line, a hook that emits nothing ends after one bounce, the depth limit, empty
-// scenes and no lights, queue memory independent of spp.
+// scenes and no lights, queue memory independent of spp. Scenes of several objects and
+// instances (rotations past pi, non-uniform scales; a DeviceScene held by the caller), and a
+// dynamic scene moved by a vertex hook on the device and rendered there (no read-back) against
+// the CPU Scene moved by the hook's CPU twin.
 //
 // Every test skips (GTEST_SKIP) only when there is no OpenCL device.
 #include <gtest/gtest.h>
@@ -107,14 +110,18 @@ Texture checker(std::uint32_t w, std::uint32_t h) {
     return make_texture(w, h, std::move(px), true);
 }
 
-/// A test scene: a textured floor (uv 0..3: wraps), a diffuse-specular sphere, a mirror
-/// sphere, a glass box, an emissive panel; two lights (point and directional).
-struct TestScene {
-    Texture tex = checker(7, 5);
+/// A scene, its camera and the texture its tables point to (which must live as long).
+struct TexturedScene {
+    Texture tex;
     RenderScene rs;
     Camera cam;
+    explicit TexturedScene(Texture t) : tex(std::move(t)) {}
+};
 
-    TestScene() {
+/// A test scene: a textured floor (uv 0..3: wraps), a diffuse-specular sphere, a mirror
+/// sphere, a glass box, an emissive panel; two lights (point and directional).
+struct TestScene : TexturedScene {
+    TestScene() : TexturedScene(checker(7, 5)) {
         SceneBuilder b;
         const auto floor = b.material(make_material(vec3(0.9f)));
         const auto shiny = b.material(make_material(vec3(0.6f, 0.3f, 0.2f), vec3(0.4f), 30.0f));
@@ -214,9 +221,8 @@ std::size_t distinct_colours(const Image& img, std::size_t enough = 8) {
 /// Renders `rs` with every built-in shader at 1 and 4 jittered spp (and 1 spp at the pixel
 /// centre) on the device and on the CPU, and checks the images agree: <= 2/255 per channel on
 /// >= 99.9 % of the pixels, debug-cost exactly; both images non-trivial.
-void expect_every_shader_matches(rcl::Device& dev, const RenderScene& rs, const Camera& cam, const std::string& what,
-                                 unsigned max_depth = 3) {
-    rcl::DeviceRenderer r(dev, rs.view());
+void expect_every_shader_matches(rcl::DeviceRenderer& r, const RenderScene& rs, const Camera& cam,
+                                 const std::string& what, unsigned max_depth = 3) {
     for (ShaderKind k : {ShaderKind::whitted, ShaderKind::normals, ShaderKind::depth, ShaderKind::ao,
                          ShaderKind::debug_cost})
         for (unsigned spp : {1u, 4u})
@@ -254,6 +260,105 @@ void expect_every_shader_matches(rcl::Device& dev, const RenderScene& rs, const 
                 EXPECT_NEAR(double(ds.continuation), cpu_cont, 1e-3 * cpu_cont + 1.0) << label;
             }
 }
+/// The same through the renderer's ShadeScene constructor (its own DeviceScene).
+void expect_every_shader_matches(rcl::Device& dev, const RenderScene& rs, const Camera& cam, const std::string& what,
+                                 unsigned max_depth = 3) {
+    rcl::DeviceRenderer r(dev, rs.view());
+    expect_every_shader_matches(r, rs, cam, what, max_depth);
+}
+
+/// A sphere with vertex normals, texture coordinates from the direction and two materials
+/// (upper and lower half).
+Mesh textured_sphere() {
+    Mesh s = make_icosphere(3);
+    s.normals = s.positions;
+    s.texcoords.resize(s.positions.size());
+    for (std::size_t i = 0; i < s.positions.size(); ++i) {
+        const vec3 p = s.positions[i];
+        s.texcoords[i] = vec2(std::atan2(p.z, p.x) * 0.15915494f + 0.5f, 0.5f * p.y + 0.5f);
+    }
+    s.materials = {make_material(vec3(0.9f, 0.85f, 0.8f), vec3(0.3f), 20.0f), make_material(vec3(0.2f, 0.5f, 0.8f))};
+    for (const Triangle& t : s.triangles)
+        s.material_ids.push_back(s.positions[t.v[0]].y + s.positions[t.v[1]].y + s.positions[t.v[2]].y > 0.0f ? 0u : 1u);
+    return s;
+}
+
+/// An affine transform: translate · rotate(degrees about axis) · scale.
+mat4 place(vec3 shift, float degrees, vec3 axis, vec3 scale) {
+    mat4 t = glm::translate(mat4(1.0f), shift);
+    t = glm::rotate(t, glm::radians(degrees), glm::normalize(axis));
+    return glm::scale(t, scale);
+}
+
+/// Several objects, several instances: a textured floor (identity), a textured sphere with
+/// vertex normals (object 1: translated; rotated past pi and scaled), a torus without normals
+/// in mirror and glass (object 2: rotated past pi with a non-uniform scale; rotated and
+/// scaled again). Each object has its own material table.
+struct InstancedScene : TexturedScene {
+    InstancedScene() : TexturedScene(checker(9, 6)) {
+        SceneBuilder f;
+        const auto fm = f.material(make_material(vec3(0.8f)));
+        f.quad({-4, 0, -4}, {4, 0, -4}, {4, 0, 4}, {-4, 0, 4}, fm, 2.0f);
+        Mesh torus = make_bumpy_torus(2000, 0.1f);
+        torus.normals.clear();
+        torus.texcoords.clear();
+        Material glass = make_material(vec3(0.0f), vec3(0.1f), 60.0f, 7);
+        glass.ni = 1.4f;
+        torus.materials = {make_material(vec3(0.1f), vec3(0.7f), 40.0f, 3), glass};
+        torus.material_ids.clear();
+        for (std::size_t t = 0; t < torus.triangles.size(); ++t) torus.material_ids.push_back((t / 64) % 2 ? 1u : 0u);
+        const auto floor = rs.add_object(std::move(f.m));
+        const auto sphere = rs.add_object(textured_sphere());
+        const auto ring = rs.add_object(std::move(torus));
+        rs.materials[floor].materials[fm].map_kd = &tex;
+        rs.materials[floor].materials[fm].update_derived();
+        rs.materials[sphere].materials[0].map_kd = &tex;
+        rs.materials[sphere].materials[0].update_derived();
+        rs.scene.add_instance(floor);
+        rs.scene.add_instance(sphere, place({-1.6f, 1.0f, 0.0f}, 0.0f, {0, 1, 0}, vec3(1.0f)));
+        rs.scene.add_instance(sphere, place({1.5f, 1.1f, -1.0f}, 200.0f, {0.3f, 1.0f, 0.2f}, vec3(0.8f, 1.1f, 0.9f)));
+        rs.scene.add_instance(ring, place({0.3f, 0.6f, 1.6f}, 250.0f, {0, 1, 0}, vec3(1.6f, 0.5f, 1.0f)));
+        rs.scene.add_instance(ring, place({-0.5f, 2.3f, -2.0f}, -120.0f, {1, 0.2f, 0}, vec3(0.7f, 1.3f, 0.9f)));
+        rs.scene.update_top_level();
+        cam.position = {0.5f, 3.0f, 6.0f};
+        cam.target = {0.0f, 1.0f, 0.0f};
+        cam.width = 96;
+        cam.height = 72;
+        cam.vfov_degrees = 55.0f;
+        rs.lights.push_back(default_key_light(cam));
+        rs.lights.push_back(Light::point({-2.0f, 5.0f, 2.0f}, vec3(0.5f, 0.45f, 0.4f)));
+    }
+};
+
+/// A vertex hook with the same roundings on both sides (fma, no transcendental functions):
+/// bends the object along z by amount · x², tilts the normals to match and shifts the uvs.
+struct BendHook {
+    static constexpr const char* name = "bend";
+    struct Params {
+        float amount = 0.0f;
+        float uv_shift = 0.0f;
+    };
+    static constexpr const char* source = R"CLC(typedef struct {
+    float amount;
+    float uv_shift;
+} bend_params;
+
+rk_vertex bend(rk_vertex v, uint index, bend_params p) {
+    v.normal[0] = fma(-2.0f * p.amount, v.position[0], v.normal[0]);
+    v.position[2] = fma(p.amount * v.position[0], v.position[0], v.position[2]);
+    v.uv[0] = v.uv[0] + p.uv_shift;
+    return v;
+}
+)CLC";
+    static Vertex apply(const Vertex& v, std::uint32_t, const Params& p) {
+        Vertex o = v;
+        o.normal.x = std::fma(-2.0f * p.amount, v.position.x, v.normal.x);
+        o.position.z = std::fma(p.amount * v.position.x, v.position.x, v.position.z);
+        o.uv.x = v.uv.x + p.uv_shift;
+        return o;
+    }
+};
+static_assert(rcl::VertexHook<BendHook>);
 
 /// A generated scene: a bumpy torus, an icosphere and a triangle soup (scene/generate.hpp) on a
 /// floor, with diffuse, shiny, mirror and glass materials and lights placed from `seed`.
@@ -690,4 +795,90 @@ TEST(DeviceRender, CliRendersOnTheDeviceLikeOnTheCpu) {
     }
     EXPECT_THROW(run_cli({obj, gpu, "--device", "cl", "--spp", "0", "--quiet"}), RaykitCliRenderUsageError);
     EXPECT_THROW(run_cli({obj, gpu, "--device", "gpu", "--quiet"}), RaykitCliRenderUsageError);
+}
+
+TEST(DeviceRender, InstancedMultiObjectSceneMatchesTheCpuRenderer) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    InstancedScene sc;
+    ASSERT_EQ(sc.rs.scene.objects().size(), 3u);
+    ASSERT_EQ(sc.rs.scene.instances().size(), 5u);
+    expect_every_shader_matches(dev, sc.rs, sc.cam, "instanced (own DeviceScene)");
+    // the same scene through a DeviceScene the caller holds
+    rcl::DeviceScene<> ds(dev, sc.rs.scene);
+    ds.update();
+    rcl::DeviceRenderer r(ds, sc.rs.materials, sc.rs.lights);
+    expect_every_shader_matches(r, sc.rs, sc.cam, "instanced (DeviceScene)");
+    // the comparison sees the instances: moving one changes the image
+    ShadeSettings s;
+    s.shader = ShaderKind::normals;
+    const Image before = r.render(sc.cam, s);
+    sc.rs.scene.set_transform(2, place({0.0f, 1.4f, 0.2f}, 20.0f, {0.3f, 1.0f, 0.2f}, vec3(1.3f, 1.1f, 0.9f)));
+    sc.rs.scene.update_top_level();
+    ds.update();
+    const Image after = r.render(sc.cam, s);
+    EXPECT_LT(compare(before, after).fraction_ok(), 0.95);
+    EXPECT_EQ(compare(cpu_render(sc.rs, sc.cam, s), after).bad, 0u);
+    // one table per object
+    EXPECT_THROW(rcl::DeviceRenderer(ds, std::span<const MaterialTable>(sc.rs.materials).first(2), sc.rs.lights),
+                 std::invalid_argument);
+}
+
+TEST(DeviceRender, DynamicSceneMovedAndRenderedOnTheDeviceMatchesTheCpu) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    Texture tex = checker(8, 8);
+    RenderScene rs;
+    SceneBuilder f;
+    const auto fm = f.material(make_material(vec3(0.7f, 0.7f, 0.6f)));
+    f.quad({-5, 0, -5}, {5, 0, -5}, {5, 0, 5}, {-5, 0, 5}, fm);
+    const auto floor = rs.add_object(std::move(f.m));
+    const auto body = rs.add_object(textured_sphere(), ObjectKind::dynamic);
+    rs.materials[body].materials[0].map_kd = &tex;
+    rs.materials[body].materials[0].update_derived();
+    rs.scene.add_instance(floor);
+    rs.scene.add_instance(body, mat4(1.0f));  // identity: not mapped
+    rs.scene.add_instance(body, place({2.0f, 1.2f, -1.0f}, 190.0f, {0.2f, 1.0f, 0.1f}, vec3(0.9f, 0.6f, 1.1f)));
+    rs.scene.update_top_level();
+    Camera cam;
+    cam.position = {0.8f, 3.0f, 6.0f};
+    cam.target = {0.6f, 0.8f, 0.0f};
+    cam.width = 80;
+    cam.height = 60;
+    rs.lights.push_back(Light::point({2.0f, 5.0f, 3.0f}, vec3(0.9f)));
+
+    rcl::DeviceScene<BendHook> ds(dev, rs.scene);
+    rcl::DeviceRenderer r(ds, rs.materials, rs.lights);
+    EXPECT_THROW(r.render(cam, ShadeSettings{}), std::logic_error) << "rendered before update()";
+    Image first;
+    for (int frame = 0; frame < 3; ++frame) {
+        const BendHook::Params p{.amount = 0.35f * float(frame), .uv_shift = 0.3f * float(frame)};
+        // the device: vertex stage, refit, top level, render — no vertex read back
+        ds.set_hook<BendHook>(body, p);
+        ds.update();
+        // the CPU twin
+        rs.scene.move_vertices(body, [&](const Vertex& v, std::uint32_t i) { return BendHook::apply(v, i, p); });
+        rs.scene.update_top_level();
+        for (ShaderKind k : {ShaderKind::whitted, ShaderKind::normals, ShaderKind::depth, ShaderKind::ao,
+                             ShaderKind::debug_cost}) {
+            RenderSettings set;
+            set.spp = 2;
+            set.seed = 5;
+            set.threads = 2;
+            set.shade.shader = k;
+            set.shade.max_depth = 2;
+            set.shade.ao_samples = 8;
+            const std::string label = "frame " + std::to_string(frame) + " " + shader_name(k);
+            const Image cpu = render_cpu(twin_view(rs), cam, set);
+            const Image gpu = r.render(cam, set);
+            const Diff d = compare(cpu, gpu);
+            EXPECT_GE(d.fraction_ok(), 0.999) << label << ": " << d.bad << " of " << d.total
+                                              << " pixels differ by more than 2/255, max diff " << d.worst;
+            if (k == ShaderKind::debug_cost) EXPECT_EQ(d.worst, 0.0f) << label;
+            EXPECT_GE(distinct_colours(gpu), 4u) << label;
+            if (k == ShaderKind::whitted && frame == 0) first = gpu;
+            if (k == ShaderKind::whitted && frame == 2)  // the comparison sees the motion
+                EXPECT_LT(compare(first, gpu).fraction_ok(), 0.95);
+        }
+    }
+    EXPECT_EQ(ds.launches().vertex, 3u);
+    EXPECT_EQ(ds.dynamic_object_count(), 1u);
 }

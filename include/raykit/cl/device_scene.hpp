@@ -9,10 +9,11 @@
 //     FrameTimes ft = ds.update();                          // vertex stage, refit, top level
 //     ds.camera_rays(cam.frame(), rays);  ds.closest(rays, hits, n);
 //
-// Upload: every object's nodes, prim_ids, triangles and positions go into
-// concatenated device arrays once, dynamic objects first. Static objects
-// are never written again. A dynamic object also gets its rest vertices
-// (position, normal, uv) and a moved copy.
+// Upload: every object's nodes, prim_ids, triangles, positions and vertex
+// records (rk_vertex: position, normal, uv — what the renderer shades with)
+// go into concatenated device arrays once, dynamic objects first. Static
+// objects are never written again. A dynamic object also gets its rest
+// vertices; the vertex stage writes its moved vertices over its records.
 //
 // update() runs only the stages the scene needs:
 //   vertex stage  one launch per hook that moves at least one object (the
@@ -83,8 +84,78 @@ struct FrameTimes {
     double total_ms() const noexcept { return vertex_ms + refit_ms + top_level_ms; }
 };
 
+/// A DeviceScene's device arrays and top level, whatever its hooks: what other
+/// device stages (the renderer, cl/render.hpp) bind. Made only by DeviceScene.
+class DeviceSceneArrays {
+public:
+    DeviceSceneArrays(const DeviceSceneArrays&) = delete;
+    DeviceSceneArrays& operator=(const DeviceSceneArrays&) = delete;
+
+    /// The device its arrays live on.
+    Device& device() const noexcept { return *dev_; }
+    /// The Scene it mirrors (instances are read from it at each update()).
+    const Scene& scene() const noexcept { return *scene_; }
+    /// Where each object lies in the concatenated arrays (object order).
+    const std::vector<ObjectRecord>& object_records() const noexcept { return records_; }
+    /// Object root boxes as of the last update() (device-refitted for dynamic objects).
+    const std::vector<AABB>& root_boxes() const noexcept { return roots_; }
+    /// The top-level tree of the last update().
+    const Bvh& top_level() const noexcept { return top_; }
+
+    // The arrays as kernels bind them (kernels/raykit/kernels/trace.hpp's RK_SCENE_PARAMS order).
+    /// Every object's tree nodes, at its node_offset.
+    const Buffer<Node>& nodes() const noexcept { return nodes_; }
+    /// Every object's prim_ids, at its prim_offset.
+    const Buffer<std::uint32_t>& prim_ids() const noexcept { return prim_ids_; }
+    /// Every object's triangles (vertex indices relative to the object), at its triangle_offset.
+    const Buffer<Triangle>& triangles() const noexcept { return triangles_; }
+    /// Every object's current positions (3 floats each), at its vertex_offset.
+    const Buffer<float>& positions() const noexcept { return positions_; }
+    /// Every object's vertex records at its vertex_offset (moved ones as last moved).
+    const Buffer<Vertex>& vertices() const noexcept { return vertices_; }
+    /// One ObjectRecord per object, in object order.
+    const Buffer<ObjectRecord>& objects() const noexcept { return objects_; }
+    /// The top-level tree's nodes (top_count() of them) as of the last update().
+    const Buffer<Node>& top_nodes() const noexcept { return top_nodes_; }
+    /// The top-level tree's leaf slots: instance indices.
+    const Buffer<std::uint32_t>& top_ids() const noexcept { return top_ids_; }
+    /// One InstanceRecord per instance, as of the last update().
+    const Buffer<InstanceRecord>& instances() const noexcept { return instances_; }
+    /// Nodes of the top-level tree (0: nothing to trace).
+    std::uint32_t top_count() const noexcept { return top_count_; }
+
+    /// Throws std::logic_error unless update() ran and no instance was added since.
+    void require_fresh() const {
+        if (!fresh_) throw std::logic_error("raykit::cl::DeviceScene: call update() before tracing");
+        if (scene_->instances().size() != instance_count_)
+            throw std::logic_error("raykit::cl::DeviceScene: instances changed since update()");
+    }
+
+protected:
+    DeviceSceneArrays(Device& dev, const Scene& scene) : dev_(&dev), scene_(&scene) {}
+    ~DeviceSceneArrays() = default;
+
+    Device* dev_;
+    const Scene* scene_;
+    std::vector<ObjectRecord> records_;
+    std::vector<AABB> roots_;
+    bool fresh_ = false;
+    Buffer<Node> nodes_;
+    Buffer<std::uint32_t> prim_ids_;
+    Buffer<Triangle> triangles_;
+    Buffer<float> positions_;
+    Buffer<ObjectRecord> objects_;
+    Buffer<Vertex> vertices_;  ///< every object's vertex records (at vertex_offset), moved ones included
+    Bvh top_;
+    std::uint32_t top_count_ = 0;
+    std::size_t instance_count_ = 0;
+    Buffer<Node> top_nodes_;
+    Buffer<std::uint32_t> top_ids_;
+    Buffer<InstanceRecord> instances_;
+};
+
 template <VertexHook... Hooks>
-class DeviceScene {
+class DeviceScene : public DeviceSceneArrays {
     using HookList = std::tuple<Hooks...>;
     static constexpr std::size_t kHooks = sizeof...(Hooks);
 
@@ -98,7 +169,7 @@ class DeviceScene {
     static constexpr std::size_t hook_index = index_of<H>(std::make_index_sequence<kHooks>{});
 
 public:
-    DeviceScene(Device& dev, const Scene& scene) : dev_(&dev), scene_(&scene) {
+    DeviceScene(Device& dev, const Scene& scene) : DeviceSceneArrays(dev, scene) {
         const auto& objs = scene.objects();
         if (objs.size() >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::DeviceScene: too many objects");
         records_.resize(objs.size());
@@ -108,7 +179,7 @@ public:
         std::vector<std::uint32_t> prim_ids;
         std::vector<Triangle> tris;
         std::vector<float> pos;
-        std::vector<Vertex> rest;
+        std::vector<Vertex> verts, rest;
         std::vector<RefitTree> trees;
         auto add = [&](std::uint32_t i) {
             const SceneObject& o = objs[i];
@@ -125,6 +196,9 @@ public:
             tris.insert(tris.end(), o.mesh.triangles.begin(), o.mesh.triangles.end());
             for (const vec3& p : o.mesh.positions) pos.insert(pos.end(), {p.x, p.y, p.z});
             checked(pos.size() / 3);
+            for (std::size_t v = 0; v < o.mesh.positions.size(); ++v)
+                verts.push_back({o.mesh.positions[v], o.mesh.normals.empty() ? vec3(0.0f) : o.mesh.normals[v],
+                                 o.mesh.texcoords.empty() ? vec2(0.0f) : o.mesh.texcoords[v]});
             if (o.dynamic()) {
                 dynamic_.push_back(i);
                 rest_offset_.push_back(checked(rest.size()));
@@ -144,9 +218,9 @@ public:
         triangles_ = Buffer<Triangle>(dev, tris, CL_MEM_READ_ONLY);
         positions_ = Buffer<float>(dev, pos);
         objects_ = Buffer<ObjectRecord>(dev, records_, CL_MEM_READ_ONLY);
+        vertices_ = Buffer<Vertex>(dev, verts);
         if (!dynamic_.empty()) {
             rest_ = Buffer<Vertex>(dev, rest, CL_MEM_READ_ONLY);
-            moved_ = Buffer<Vertex>(dev, rest);
             refit_plan_ = RefitPlan(dev, trees);
             which_roots_ = Buffer<std::uint32_t>(dev, dynamic_, CL_MEM_READ_ONLY);
             root_boxes_ = Buffer<AABB>(dev, dynamic_.size());
@@ -218,7 +292,7 @@ public:
     FrameTimes update(RefitMethod method = RefitMethod::one_pass, TopLevelUpdate top = TopLevelUpdate::rebuild) {
         using clock = std::chrono::steady_clock;
         auto ms = [](clock::time_point a) { return std::chrono::duration<double, std::milli>(clock::now() - a).count(); };
-        ensure_program();
+        if (!dynamic_.empty()) ensure_program();  // a static scene launches nothing here (built at its first trace)
         FrameTimes ft;
         auto t0 = clock::now();
         const bool moved = run_vertex_stage() || moved_by_host_;
@@ -312,18 +386,13 @@ public:
         return out;
     }
     std::vector<Vertex> moved_vertices(std::uint32_t object) {
-        const std::size_t d = dynamic_slot(object, "moved_vertices");
+        (void)dynamic_slot(object, "moved_vertices");
         std::vector<Vertex> out(records_[object].vertex_count);
-        moved_.read(*dev_, std::span<Vertex>(out), rest_offset_[d]);
+        vertices_.read(*dev_, std::span<Vertex>(out), records_[object].vertex_offset);
         return out;
     }
-    /// The top-level tree of the last update().
-    const Bvh& top_level() const noexcept { return top_; }
-    /// Object root boxes as of the last update() (device-refitted for dynamic objects).
-    const std::vector<AABB>& root_boxes() const noexcept { return roots_; }
     const RefitPlan& refit_plan() const noexcept { return refit_plan_; }
     std::size_t dynamic_object_count() const noexcept { return dynamic_.size(); }
-    Device& device() noexcept { return *dev_; }
 
 private:
     static constexpr std::size_t kNoHook = ~std::size_t(0);
@@ -415,7 +484,7 @@ private:
             hs.params.reserve(*dev_, params.size() * sizeof(typename H::Params));
             hs.params.write(*dev_, std::span<const std::byte>(reinterpret_cast<const std::byte*>(params.data()),
                                                               params.size() * sizeof(typename H::Params)));
-            set_args(hs.kernel, rest_, moved_, positions_, hs.begin, hs.rest_offset, hs.pos_offset, hs.params,
+            set_args(hs.kernel, rest_, vertices_, positions_, hs.begin, hs.rest_offset, hs.pos_offset, hs.params,
                      static_cast<std::uint32_t>(hs.objects.size()), hs.total);
             if constexpr (hook_buffer_count<H>() > 0) {
                 constexpr cl_uint kFirstBufferArg = 9;  // after `total` (kernels/raykit/kernels/vertex.hpp)
@@ -454,6 +523,7 @@ private:
             recs[i].world_to_object = insts[i].to_object;
             recs[i].object_to_world = insts[i].to_world;
             recs[i].object = insts[i].object;
+            recs[i].identity = insts[i].identity ? 1u : 0u;
         }
         if (mode == TopLevelUpdate::refit && top_.prim_ids.size() == insts.size() && !insts.empty())
             raykit::refit(top_, [&](std::uint32_t i) { return boxes[i]; });
@@ -470,9 +540,7 @@ private:
     }
 
     void prepare_trace(const Buffer<Ray>& rays, std::size_t n) {
-        if (!fresh_) throw std::logic_error("raykit::cl::DeviceScene: call update() before tracing");
-        if (scene_->instances().size() != instance_count_)
-            throw std::logic_error("raykit::cl::DeviceScene: instances changed since update()");
+        require_fresh();
         if (n > rays.size()) throw std::out_of_range("raykit::cl::DeviceScene: more rays asked for than the buffer holds");
         if (n > 0xFFFFFFFFu) throw std::length_error("raykit::cl::DeviceScene: more than 2^32 rays in one launch");
         ensure_program();
@@ -488,16 +556,12 @@ private:
         ::cl::Kernel kernel;
     };
 
-    Device* dev_;
-    const Scene* scene_;
-    std::vector<ObjectRecord> records_;
     std::vector<std::uint32_t> dynamic_;      ///< scene object indices of dynamic objects
     std::vector<std::uint32_t> rest_offset_;  ///< per dynamic slot, into rest_/moved_
     std::vector<std::size_t> hook_of_;        ///< per object: hook index or kNoHook
     std::vector<std::vector<std::byte>> params_;
-    std::vector<AABB> roots_;
     std::array<HookState, kHooks> hooks_{};
-    bool tables_dirty_ = true, have_program_ = false, moved_by_host_ = false, fresh_ = false;
+    bool tables_dirty_ = true, have_program_ = false, moved_by_host_ = false;
     std::uint64_t used_ = 0;
 
     Program program_;
@@ -505,21 +569,10 @@ private:
     RefitKernels refit_kernels_;
     RefitPlan refit_plan_;
 
-    Buffer<Node> nodes_;
-    Buffer<std::uint32_t> prim_ids_;
-    Buffer<Triangle> triangles_;
-    Buffer<float> positions_;
-    Buffer<ObjectRecord> objects_;
-    Buffer<Vertex> rest_, moved_;
+    Buffer<Vertex> rest_;
     Buffer<std::uint32_t> which_roots_;
     Buffer<AABB> root_boxes_;
 
-    Bvh top_;
-    std::uint32_t top_count_ = 0;
-    std::size_t instance_count_ = 0;
-    Buffer<Node> top_nodes_;
-    Buffer<std::uint32_t> top_ids_;
-    Buffer<InstanceRecord> instances_;
     LaunchCounts launches_;
 };
 

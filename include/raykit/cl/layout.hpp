@@ -46,7 +46,8 @@ struct InstanceRecord {
     Affine world_to_object;
     Affine object_to_world;
     std::uint32_t object = 0;
-    std::uint32_t pad[3] = {0, 0, 0};
+    std::uint32_t identity = 0;  ///< 1: SceneInstance::identity (rays and surfaces are not mapped)
+    std::uint32_t pad[2] = {0, 0};
 };
 
 /// An object's place in a device scene's concatenated arrays (rk_object).
@@ -79,7 +80,7 @@ static_assert(offsetof(CameraFrame, origin) == 0 && offsetof(CameraFrame, corner
               offsetof(CameraFrame, width) == 48 && offsetof(CameraFrame, height) == 52);
 static_assert(sizeof(InstanceRecord) == 112 && alignof(InstanceRecord) == 4);
 static_assert(offsetof(InstanceRecord, world_to_object) == 0 && offsetof(InstanceRecord, object_to_world) == 48 &&
-              offsetof(InstanceRecord, object) == 96);
+              offsetof(InstanceRecord, object) == 96 && offsetof(InstanceRecord, identity) == 100);
 static_assert(sizeof(ObjectRecord) == 32 && alignof(ObjectRecord) == 4);
 static_assert(offsetof(ObjectRecord, node_count) == 4 && offsetof(ObjectRecord, prim_offset) == 8 &&
               offsetof(ObjectRecord, triangle_offset) == 12 && offsetof(ObjectRecord, vertex_offset) == 16 &&
@@ -136,6 +137,7 @@ inline std::vector<LayoutEntry> layout_entries() {
     off("rk_instance", "world_to_object", offsetof(InstanceRecord, world_to_object));
     off("rk_instance", "object_to_world", offsetof(InstanceRecord, object_to_world));
     off("rk_instance", "object", offsetof(InstanceRecord, object));
+    off("rk_instance", "identity", offsetof(InstanceRecord, identity));
     size("rk_object", sizeof(ObjectRecord), alignof(ObjectRecord));
     off("rk_object", "node_offset", offsetof(ObjectRecord, node_offset));
     off("rk_object", "node_count", offsetof(ObjectRecord, node_count));

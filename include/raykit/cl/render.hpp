@@ -2,15 +2,28 @@
 //
 // Interface
 // ---------
-//   raykit::cl::DeviceRenderer r(raykit::cl::Device::shared(), rs.view());   // uploads mesh, tree,
-//                                                                           // materials, textures, lights
+//   raykit::cl::DeviceScene<WaveHook> ds(dev, scene);  ds.update();          // cl/device_scene.hpp
+//   raykit::cl::DeviceRenderer r(ds, tables, lights);   // renders ds: its objects, instances and
+//                                                       // top level, moved vertices included;
+//                                                       // one MaterialTable per object
+//   per frame: move ds (set_hook, scene.set_transform), ds.update(), r.render(cam, set)
+//   raykit::cl::DeviceRenderer r(dev, rs.view());       // a ShadeScene: uploads it into a
+//                                                       // DeviceScene of its own
 //   RenderSettings set;  set.spp = 4;  set.shade.shader = ShaderKind::ao;
 //   Image img = r.render(cam, set);                            // built-in shader by set.shade.shader
 //   Image img = r.render(cam, shade_settings);                 // 1 sample at each pixel centre
 //   Image img = r.render_hook<MyHook>(cam, set, params);       // a user ray hook
 //   r.set_lights(lights);                                      // replaces the lights
 //
-// The image equals render_cpu's for the same RenderSettings (render(cam, ShadeSettings) is
+// Scenes: the renderer binds the DeviceScene's arrays (nodes, prim ids, triangles, positions,
+// rk_vertex records, object and instance records, top-level tree) and adds what shading needs:
+// the objects' material tables concatenated (ShadeObjectRecord: each object's offset, count and
+// vertex attributes), their material ids at each object's triangle_offset, the textures, the
+// lights. Surfaces are computed in object space and mapped to the world as on the CPU (points
+// by the instance's transform, normals by its inverse transpose, renormalised; identity
+// instances not mapped). Nothing is read back between a DeviceScene's update() and the image.
+//
+// The image equals render_cpu's over the binary trees (ShadeScene::trees = binary) for the same RenderSettings (render(cam, ShadeSettings) is
 // spp = 1, jitter = false): the same camera rays bit for bit (raykit::PixelSampler's sample
 // positions and generator states, CameraFrame::ray), the same triangle test and traversal
 // order, the same random numbers (ao), the same traversal step counts (debug-cost), the same
@@ -18,9 +31,9 @@
 // OpenCL's pow, normalize, sin and cos are not correctly rounded). Built-in shaders: all of
 // ShaderKind — normals, depth, whitted, ao, debug_cost (the traversal steps are mapped to the
 // heat map on the host with cost_heat_map and RenderSettings::cost_scale, as render_cpu does).
-// Alpha cut-outs (map_Kd alpha < 0.5) are skipped inside the closest-hit and shadow traversals
-// as on the CPU, when the scene has any (a separate traversal, so scenes without them pay
-// nothing). RenderSettings::threads and time_stages mean nothing here; progress is called after
+// Alpha cut-outs (map_Kd alpha < 0.5) are skipped inside the closest-hit and shadow walks as on
+// the CPU: a leaf filter of the one walk (kernels/raykit/kernels/trace.hpp) compiled into the
+// program only when some material is alpha-tested, so scenes without cut-outs pay nothing. RenderSettings::threads and time_stages mean nothing here; progress is called after
 // each sample pass with (passes done, spp).
 //
 // Ray hooks
@@ -86,6 +99,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -94,6 +108,7 @@
 #include <vector>
 
 #include "raykit/cl/buffer.hpp"
+#include "raykit/cl/device_scene.hpp"
 #include "raykit/cl/layout.hpp"
 #include "raykit/cl/program.hpp"
 #include "raykit/cl/trace.hpp"
@@ -177,8 +192,8 @@ static_assert(sizeof(LightRecord) == 48 && offsetof(LightRecord, type) == 12 && 
 struct RenderSettingsRecord {
     float ambient[3], background[3];
     float min_weight, depth_far;
-    std::uint32_t width, height, max_depth, shadows, filter, light_count, has_normals, has_texcoords;
-    std::uint32_t material_id_count, material_count, alpha_testing, ao_samples;
+    std::uint32_t width, height, max_depth, shadows, filter, light_count, object_count, pad3;
+    std::uint32_t pad4, material_count, alpha_testing, ao_samples;
     float ao_radius;
     std::uint32_t pad0, pad1, pad2;
 };
@@ -188,6 +203,21 @@ static_assert(sizeof(RenderSettingsRecord) == 96 && offsetof(RenderSettingsRecor
               offsetof(RenderSettingsRecord, light_count) == 52 && offsetof(RenderSettingsRecord, material_count) == 68 &&
               offsetof(RenderSettingsRecord, alpha_testing) == 72 && offsetof(RenderSettingsRecord, ao_samples) == 76 &&
               offsetof(RenderSettingsRecord, ao_radius) == 80);
+
+/// Per-object shading data (rk_shade_object): the object's slice of the concatenated material
+/// table (its default material last) and of the material ids, and what its vertices carry.
+struct ShadeObjectRecord {
+    std::uint32_t material_offset = 0;    ///< its first material in the concatenated table
+    std::uint32_t material_count = 0;     ///< its table's size, the default material (last) included
+    std::uint32_t material_id_count = 0;  ///< its triangles with a material id
+    std::uint32_t flags = 0;  ///< kShadeNormals | kShadeUvs
+};
+static_assert(sizeof(ShadeObjectRecord) == 16 && offsetof(ShadeObjectRecord, material_count) == 4 &&
+              offsetof(ShadeObjectRecord, material_id_count) == 8 && offsetof(ShadeObjectRecord, flags) == 12);
+/// ShadeObjectRecord::flags: the object has vertex normals (RK_SHADE_NORMALS).
+inline constexpr std::uint32_t kShadeNormals = 1u;
+/// ShadeObjectRecord::flags: the object has texture coordinates (RK_SHADE_UVS).
+inline constexpr std::uint32_t kShadeUvs = 2u;
 
 // ---------------------------------------------------------------- built-in hooks
 
@@ -277,16 +307,19 @@ inline void check_ray_hook_name(const std::string& name) {
 }
 }  // namespace detail
 
-/// Program of hook H for the renderer: base parts, camera, trace, shade API, the hook, the
-/// check of its params size, its shade kernel rk_dr_shade_NAME (cached per process).
+/// Program of hook H for the renderer: base parts, camera, the shading data (with the alpha
+/// cut-out leaf filter when `cut_outs`), the walk, the shade API, the hook, the check of its
+/// params size, its shade kernel rk_dr_shade_NAME (cached per process).
 template <RayHook H>
-Program ray_hook_program(Device& dev) {
+Program ray_hook_program(Device& dev, bool cut_outs = false) {
     const std::string name = H::name;
     detail::check_ray_hook_name(name);
     std::vector<SourcePart> parts = base_parts();
     if constexpr (hook_wants_traversal_steps<H>())
         parts.push_back({"<hook " + name + " options>", "#define RK_DR_STEPS 1\n"});
+    if (cut_outs) parts.push_back({"<alpha cut-outs>", "#define RK_LEAF_FILTER 1\n"});
     parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
+    parts.push_back({"raykit/kernels/shade.hpp (data)", kernels::kShadeData});
     parts.push_back({"raykit/kernels/trace.hpp", kernels::kTrace});
     parts.push_back({"raykit/kernels/shade.hpp", kernels::kShade});
     parts.push_back({"<hook " + name + ">", H::source});
@@ -303,82 +336,38 @@ Program ray_hook_program(Device& dev) {
 
 class DeviceRenderer {
 public:
-    /// Uploads everything `scene` (from make_shade_scene / RenderScene::view) holds; the scene
-    /// need not outlive the renderer. Throws std::length_error for meshes beyond 32-bit indices.
+    /// Renders `scene` as it stands after its last update(), with one material table per object
+    /// of its Scene (in object order) and `lights`. The DeviceScene and its Scene must outlive
+    /// the renderer (they are read at each render: call scene.update() after moving it); the
+    /// tables and lights are copied. The depth and ao defaults use the world boxes of the
+    /// instances (set_bounds() to replace them). Throws std::invalid_argument when there is not
+    /// one table per object.
+    DeviceRenderer(const DeviceSceneArrays& scene, std::span<const MaterialTable> materials,
+                   std::span<const Light> lights)
+        : dev_(&scene.device()), scene_(&scene) {
+        upload_shading(materials);
+        set_lights(lights);
+    }
+    /// Uploads `scene` (from make_shade_scene / RenderScene::view) into a DeviceScene of its own:
+    /// the scene need not outlive the renderer (instances and vertices as they are now).
     DeviceRenderer(Device& dev, const ShadeScene& scene) : dev_(&dev) {
         if (!scene.scene)
             throw std::invalid_argument("raykit::cl::DeviceRenderer: incomplete ShadeScene (use make_shade_scene)");
-        // the device walk is still one mesh and its binary tree: a scene of one object, placed once
-        // at the identity (what prepare_render_scene makes)
-        const Scene& sc = *scene.scene;
-        if (sc.objects().size() != 1 || sc.instances().size() != 1 || !sc.instances()[0].identity)
-            throw std::invalid_argument(
-                "raykit::cl::DeviceRenderer: renders a scene of one object at the identity (one instance); "
-                "this scene has " + std::to_string(sc.objects().size()) + " objects and " +
-                std::to_string(sc.instances().size()) + " instances");
-        const Mesh& m = sc.objects()[0].mesh;
-        const Bvh& bvh = sc.objects()[0].bvh;
-        if (m.positions.size() >= 0x55555555u || bvh.nodes.size() >= 0xFFFFFFFFu || m.triangles.size() >= 0xFFFFFFFFu)
-            throw std::length_error("raykit::cl::DeviceRenderer: mesh too large for 32-bit indices");
+        auto own = std::make_unique<DeviceScene<>>(dev, *scene.scene);
+        own->update();
+        scene_ = own.get();
+        own_ = std::move(own);
         bounds_ = scene.bounds;
-        positions_ = Buffer<float>(dev, float_span(m.positions), CL_MEM_READ_ONLY);
-        triangles_ = Buffer<Triangle>(dev, m.triangles, CL_MEM_READ_ONLY);
-        nodes_ = Buffer<Node>(dev, std::span<const Node>(bvh.nodes.data(), bvh.nodes.size()), CL_MEM_READ_ONLY);
-        prim_ids_ = Buffer<std::uint32_t>(dev, bvh.prim_ids, CL_MEM_READ_ONLY);
-        node_count_ = static_cast<std::uint32_t>(bvh.nodes.size());
-        has_normals_ = !m.normals.empty();
-        has_texcoords_ = !m.texcoords.empty();
-        normals_ = Buffer<float>(dev, float_span(m.normals), CL_MEM_READ_ONLY);
-        texcoords_ = Buffer<float>(dev, std::span<const float>(reinterpret_cast<const float*>(m.texcoords.data()),
-                                                              m.texcoords.size() * 2),
-                                   CL_MEM_READ_ONLY);
-        material_ids_ = Buffer<std::uint32_t>(dev, m.material_ids, CL_MEM_READ_ONLY);
-        material_id_count_ = static_cast<std::uint32_t>(std::min<std::size_t>(m.material_ids.size(), m.triangles.size()));
-
-        // textures: one byte buffer, a table of (offset, size, srgb)
-        const MaterialTable& mt = scene.materials[0];
-        std::map<const Texture*, std::int32_t> tex_index;
-        std::vector<TextureRecord> tex_records;
-        std::vector<std::uint8_t> texels;
-        auto add_texture = [&](const Texture* t) -> std::int32_t {
-            if (!t) return -1;
-            if (auto it = tex_index.find(t); it != tex_index.end()) return it->second;
-            if (texels.size() / 4 + std::size_t(t->width) * t->height >= 0xFFFFFFFFu)
-                throw std::length_error("raykit::cl::DeviceRenderer: textures exceed 2^32 texels");
-            TextureRecord r{static_cast<std::uint32_t>(texels.size() / 4), t->width, t->height, t->srgb ? 1u : 0u};
-            if (t->empty()) r.width = r.height = 0;
-            texels.insert(texels.end(), t->rgba.begin(), t->rgba.end());
-            const auto idx = static_cast<std::int32_t>(tex_records.size());
-            tex_records.push_back(r);
-            tex_index.emplace(t, idx);
-            return idx;
-        };
-        std::vector<MaterialRecord> mats;
-        for (const RenderMaterial& rm : mt.materials) {
-            MaterialRecord r{};
-            for (int c = 0; c < 3; ++c) {
-                r.kd[c] = rm.kd[c];
-                r.ks[c] = rm.ks[c];
-                r.ke[c] = rm.ke[c];
-                r.mirror[c] = rm.mirror[c];
-            }
-            r.ns = rm.ns;
-            r.ni = rm.ni;
-            r.transparency = rm.transparency;
-            r.texture = add_texture(rm.map_kd);
-            r.fresnel_mirror = rm.fresnel_mirror ? 1 : 0;
-            r.alpha_tested = rm.alpha_tested ? 1 : 0;
-            r.illum = rm.illum;
-            mats.push_back(r);
-        }
-        material_count_ = static_cast<std::uint32_t>(mats.size());
-        alpha_testing_ = scene.alpha_testing;
-        materials_ = Buffer<MaterialRecord>(dev, mats, CL_MEM_READ_ONLY);
-        textures_ = Buffer<TextureRecord>(dev, tex_records, CL_MEM_READ_ONLY);
-        texels_ = Buffer<std::uint8_t>(dev, texels, CL_MEM_READ_ONLY);
-        srgb_lut_ = Buffer<float>(dev, std::span<const float>(raykit::detail::srgb8_lut, 256), CL_MEM_READ_ONLY);
-        counters_ = Buffer<std::uint32_t>(dev, 2);
+        fixed_bounds_ = true;
+        upload_shading(scene.materials);
         set_lights(scene.lights);
+    }
+
+    /// The box whose corners and diagonal give the depth shader's far distance and the ao
+    /// radius when the settings leave them 0 (as the CPU's ShadeScene::bounds).
+    void set_bounds(const AABB& b) {
+        bounds_ = b;
+        fixed_bounds_ = true;
     }
 
     /// Replaces the lights.
@@ -441,6 +430,7 @@ public:
         const CameraFrame frame = cam.frame();
         const std::size_t n_pixels = std::size_t(frame.width) * frame.height;
         if (n_pixels >= 0xFFFFFFFFu / 4) throw std::length_error("raykit::cl::DeviceRenderer: image too large");
+        if (!own_) scene_->require_fresh();
         Kernels& k = kernels_for<H>();
         const ShadeSettings& shade = set.shade;
         const RenderSettingsRecord rec = settings_record(shade, frame);
@@ -454,6 +444,7 @@ public:
         DeviceRenderStats st;
         st.passes = set.spp;
         Device& dev = *dev_;
+        const DeviceSceneArrays& sc = *scene_;
         image_.reserve(dev, n_pixels * 4);
         std::vector<Timed> events;
         for (std::uint32_t pass = 0; pass < set.spp; ++pass) {
@@ -469,8 +460,10 @@ public:
                 const unsigned slot = bounce_slot(depth);
                 hits_.reserve(dev, n);
                 steps_.reserve(dev, want_steps ? n : 1);
-                set_args(k.closest, nodes_, prim_ids_, triangles_, positions_, node_count_, queue_, hits_, steps_,
-                         static_cast<std::uint32_t>(n), materials_, material_ids_, texcoords_, textures_, texels_, rec);
+                set_args(k.closest, sc.top_nodes(), sc.top_count(), sc.top_ids(), sc.instances(), sc.objects(),
+                         sc.nodes(), sc.prim_ids(), sc.triangles(), sc.positions(), queue_, hits_, steps_,
+                         static_cast<std::uint32_t>(n), sc.vertices(), material_ids_, shade_objects_, materials_,
+                         textures_, texels_, rec);
                 launch(dev.queue(), k.closest, n, kTraceGroupSize, &events.emplace_back(Stage::trace, slot).event);
                 const std::uint32_t rays_here = depth < shade.max_depth ? max_rays : 0u;
                 const std::size_t next_cap = n * rays_here, shadow_cap = n * max_shadows;
@@ -480,18 +473,20 @@ public:
                 shadow_.reserve(dev, shadow_cap);
                 const std::uint32_t zero[2] = {0u, 0u};
                 counters_.write(dev, std::span<const std::uint32_t>(zero, 2));
-                set_args(k.shade, queue_, hits_, steps_, static_cast<std::uint32_t>(n), triangles_, positions_,
-                         normals_, texcoords_, material_ids_, materials_, textures_, texels_, srgb_lut_, lights_, rec,
-                         image_, next_, counters_, shadow_, rays_here, max_shadows, params);
+                set_args(k.shade, queue_, hits_, steps_, static_cast<std::uint32_t>(n), sc.instances(), sc.objects(),
+                         sc.triangles(), sc.positions(), sc.vertices(), material_ids_, shade_objects_, materials_,
+                         textures_, texels_, srgb_lut_, lights_, rec, image_, next_, counters_, shadow_, rays_here,
+                         max_shadows, params);
                 launch(dev.queue(), k.shade, n, kTraceGroupSize, &events.emplace_back(Stage::shade, slot).event);
                 std::uint32_t cnt[2] = {0u, 0u};
                 counters_.read(dev, std::span<std::uint32_t>(cnt, 2));
                 const std::size_t next_n = std::min<std::size_t>(cnt[0], next_cap);
                 const std::size_t shadow_n = std::min<std::size_t>(cnt[1], shadow_cap);
                 if (shadow_n > 0) {
-                    set_args(k.shadow, nodes_, prim_ids_, triangles_, positions_, node_count_, shadow_,
-                             static_cast<std::uint32_t>(shadow_n), image_, materials_, material_ids_, texcoords_,
-                             textures_, texels_, rec);
+                    set_args(k.shadow, sc.top_nodes(), sc.top_count(), sc.top_ids(), sc.instances(), sc.objects(),
+                             sc.nodes(), sc.prim_ids(), sc.triangles(), sc.positions(), shadow_,
+                             static_cast<std::uint32_t>(shadow_n), image_, sc.vertices(), material_ids_,
+                             shade_objects_, materials_, textures_, texels_, rec);
                     launch(dev.queue(), k.shadow, shadow_n, kTraceGroupSize,
                            &events.emplace_back(Stage::shadow, slot).event);
                 }
@@ -597,10 +592,10 @@ private:
 
     template <RayHook H>
     Kernels& kernels_for() {
-        const std::string key = std::string(H::name) + '\n' + H::source;
+        const std::string key = std::string(alpha_testing_ ? "cut-outs\n" : "") + H::name + '\n' + H::source;
         if (auto it = kernels_.find(key); it != kernels_.end()) return it->second;
         Kernels k;
-        k.program = ray_hook_program<H>(*dev_);
+        k.program = ray_hook_program<H>(*dev_, alpha_testing_);
         k.camera = k.program.kernel("rk_dr_camera");
         k.closest = k.program.kernel("rk_dr_closest");
         k.shadow = k.program.kernel("rk_dr_shadow");
@@ -608,7 +603,92 @@ private:
         return kernels_.emplace(key, std::move(k)).first->second;
     }
 
+    /// Uploads the concatenated material table, textures, material ids and per-object records.
+    void upload_shading(std::span<const MaterialTable> tables) {
+        const Scene& scene = scene_->scene();
+        const auto& objs = scene.objects();
+        const auto& recs = scene_->object_records();
+        if (tables.size() != objs.size())
+            throw std::invalid_argument("raykit::cl::DeviceRenderer: one MaterialTable per object needed (" +
+                                        std::to_string(objs.size()) + " objects, " + std::to_string(tables.size()) +
+                                        " tables)");
+        // textures: one byte buffer, a table of (offset, size, srgb); shared textures once
+        std::map<const Texture*, std::int32_t> tex_index;
+        std::vector<TextureRecord> tex_records;
+        std::vector<std::uint8_t> texels;
+        auto add_texture = [&](const Texture* t) -> std::int32_t {
+            if (!t) return -1;
+            if (auto it = tex_index.find(t); it != tex_index.end()) return it->second;
+            if (texels.size() / 4 + std::size_t(t->width) * t->height >= 0xFFFFFFFFu)
+                throw std::length_error("raykit::cl::DeviceRenderer: textures exceed 2^32 texels");
+            TextureRecord r{static_cast<std::uint32_t>(texels.size() / 4), t->width, t->height, t->srgb ? 1u : 0u};
+            if (t->empty()) r.width = r.height = 0;
+            texels.insert(texels.end(), t->rgba.begin(), t->rgba.end());
+            const auto idx = static_cast<std::int32_t>(tex_records.size());
+            tex_records.push_back(r);
+            tex_index.emplace(t, idx);
+            return idx;
+        };
+        std::size_t triangles = 0;
+        for (const ObjectRecord& r : recs) triangles = std::max<std::size_t>(triangles, std::size_t(r.triangle_offset) + r.triangle_count);
+        std::vector<std::uint32_t> ids(triangles, 0u);
+        std::vector<MaterialRecord> mats;
+        std::vector<ShadeObjectRecord> so(objs.size());
+        alpha_testing_ = false;
+        for (std::size_t o = 0; o < objs.size(); ++o) {
+            const MaterialTable& mt = tables[o];
+            const Mesh& m = objs[o].mesh;
+            so[o].material_offset = static_cast<std::uint32_t>(mats.size());
+            so[o].material_count = static_cast<std::uint32_t>(mt.materials.size());
+            for (const RenderMaterial& rm : mt.materials) {
+                MaterialRecord r{};
+                for (int c = 0; c < 3; ++c) {
+                    r.kd[c] = rm.kd[c];
+                    r.ks[c] = rm.ks[c];
+                    r.ke[c] = rm.ke[c];
+                    r.mirror[c] = rm.mirror[c];
+                }
+                r.ns = rm.ns;
+                r.ni = rm.ni;
+                r.transparency = rm.transparency;
+                r.texture = add_texture(rm.map_kd);
+                r.fresnel_mirror = rm.fresnel_mirror ? 1 : 0;
+                r.alpha_tested = rm.alpha_tested ? 1 : 0;
+                r.illum = rm.illum;
+                mats.push_back(r);
+            }
+            const std::size_t with_id = std::min(m.material_ids.size(), m.triangles.size());
+            so[o].material_id_count = static_cast<std::uint32_t>(with_id);
+            std::copy_n(m.material_ids.begin(), with_id, ids.begin() + recs[o].triangle_offset);
+            so[o].flags = (m.normals.empty() ? 0u : kShadeNormals) | (m.texcoords.empty() ? 0u : kShadeUvs);
+            alpha_testing_ = alpha_testing_ || mt.any_alpha_tested();
+        }
+        if (mats.size() >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::DeviceRenderer: too many materials");
+        material_count_ = static_cast<std::uint32_t>(mats.size());
+        object_count_ = static_cast<std::uint32_t>(objs.size());
+        Device& dev = *dev_;
+        materials_ = Buffer<MaterialRecord>(dev, mats, CL_MEM_READ_ONLY);
+        material_ids_ = Buffer<std::uint32_t>(dev, ids, CL_MEM_READ_ONLY);
+        shade_objects_ = Buffer<ShadeObjectRecord>(dev, so, CL_MEM_READ_ONLY);
+        textures_ = Buffer<TextureRecord>(dev, tex_records, CL_MEM_READ_ONLY);
+        texels_ = Buffer<std::uint8_t>(dev, texels, CL_MEM_READ_ONLY);
+        srgb_lut_ = Buffer<float>(dev, std::span<const float>(raykit::detail::srgb8_lut, 256), CL_MEM_READ_ONLY);
+        counters_ = Buffer<std::uint32_t>(dev, 2);
+    }
+
+    /// set_bounds()'s box, else the world boxes of the instances as of the last update().
+    AABB bounds() const {
+        if (fixed_bounds_) return bounds_;
+        AABB b;
+        const Scene& scene = scene_->scene();
+        const auto& roots = scene_->root_boxes();
+        for (const SceneInstance& in : scene.instances())
+            b.grow(in.identity ? roots[in.object] : transformed_box(roots[in.object], in.transform));
+        return b;
+    }
+
     RenderSettingsRecord settings_record(const ShadeSettings& s, const CameraFrame& frame) const {
+        const AABB box = bounds();
         RenderSettingsRecord r{};
         for (int c = 0; c < 3; ++c) {
             r.ambient[c] = s.ambient[c];
@@ -619,8 +699,8 @@ private:
         if (!(far > 0.0f)) {  // as the CPU's depth shader: farthest corner of the scene bounds
             far = 0.0f;
             for (int c = 0; c < 8; ++c) {
-                const vec3 corner((c & 1) ? bounds_.max.x : bounds_.min.x, (c & 2) ? bounds_.max.y : bounds_.min.y,
-                                  (c & 4) ? bounds_.max.z : bounds_.min.z);
+                const vec3 corner((c & 1) ? box.max.x : box.min.x, (c & 2) ? box.max.y : box.min.y,
+                                  (c & 4) ? box.max.z : box.min.z);
                 far = std::max(far, glm::length(corner - frame.origin));
             }
         }
@@ -631,25 +711,25 @@ private:
         r.shadows = s.shadows ? 1u : 0u;
         r.filter = s.filter == TextureFilter::nearest ? 1u : 0u;
         r.light_count = light_count_;
-        r.has_normals = has_normals_ ? 1u : 0u;
-        r.has_texcoords = has_texcoords_ ? 1u : 0u;
-        r.material_id_count = material_id_count_;
+        r.object_count = object_count_;
         r.material_count = material_count_;
         r.alpha_testing = alpha_testing_ ? 1u : 0u;
         r.ao_samples = s.ao_samples;
         float radius = s.ao_radius;  // as the CPU's ao shader
-        if (!(radius > 0.0f)) radius = 0.1f * glm::length(bounds_.extent());
+        if (!(radius > 0.0f)) radius = 0.1f * glm::length(box.extent());
         if (!(radius > 0.0f)) radius = kInf;
         r.ao_radius = radius;
         return r;
     }
 
     Device* dev_;
+    const DeviceSceneArrays* scene_ = nullptr;
+    std::unique_ptr<DeviceScene<>> own_;  ///< the ShadeScene constructor's upload
     AABB bounds_;
-    Buffer<float> positions_, normals_, texcoords_, srgb_lut_, image_;
-    Buffer<Triangle> triangles_;
-    Buffer<Node> nodes_;
-    Buffer<std::uint32_t> prim_ids_, material_ids_, counters_, steps_;
+    bool fixed_bounds_ = false;
+    Buffer<float> srgb_lut_, image_;
+    Buffer<std::uint32_t> material_ids_, counters_, steps_;
+    Buffer<ShadeObjectRecord> shade_objects_;
     Buffer<MaterialRecord> materials_;
     Buffer<TextureRecord> textures_;
     Buffer<std::uint8_t> texels_;
@@ -657,8 +737,8 @@ private:
     Buffer<PathRay> queue_, next_;
     Buffer<ShadowRay> shadow_;
     Buffer<Hit> hits_;
-    std::uint32_t node_count_ = 0, material_id_count_ = 0, material_count_ = 0, light_count_ = 0;
-    bool has_normals_ = false, has_texcoords_ = false, alpha_testing_ = false;
+    std::uint32_t object_count_ = 0, material_count_ = 0, light_count_ = 0;
+    bool alpha_testing_ = false;
     std::map<std::string, Kernels> kernels_;
 };
 

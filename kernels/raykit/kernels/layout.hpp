@@ -61,12 +61,13 @@ typedef struct {
     uint height;
 } rk_camera;
 
-/* Instance (raykit::cl::InstanceRecord): row-major 3x4 affine transforms. */
+/* Instance (raykit::cl::InstanceRecord): row-major 3x4 affine transforms;
+   identity != 0: the transform is the identity, rays and surfaces are not mapped. */
 typedef struct {
     float world_to_object[12];
     float object_to_world[12];
     uint object;
-    uint pad0;
+    uint identity;
     uint pad1;
     uint pad2;
 } rk_instance;

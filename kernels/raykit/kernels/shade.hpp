@@ -1,14 +1,19 @@
 // raykit/kernels/shade.hpp — the wavefront renderer's device side: path and
 // shadow queues, the surface at a hit, the ray-hook API and the built-in
 // shaders (normals, depth, whitted, ao, debug-cost). Host side:
-// include/raykit/cl/render.hpp.
+// include/raykit/cl/render.hpp. Two parts: kShadeData (the crossing structs,
+// per-object material lookup and, with RK_LEAF_FILTER, the alpha cut-out
+// filter the walk calls) goes before kernels/raykit/kernels/trace.hpp,
+// kShade (everything else) after it. The closest-hit and shadow kernels run
+// trace.hpp's rk_walk over the DeviceScene's two levels.
 //
 // A frame is one pass per sample index s = 0 .. spp-1, each a loop over
 // bounces. rk_dr_camera fills queue 0 with sample s of every pixel (one
 // camera ray per pixel, placed as raykit::PixelSampler places it, with the
 // sample's generator state; pass 0 also clears the image). Per bounce:
 //   rk_dr_closest        closest hit of every ray of the current queue (and,
-//                        for hooks that ask, its traversal steps)
+//                        for hooks that ask, its traversal steps: bottom-level
+//                        inner nodes + leaves, as the CPU counts them)
 //   rk_dr_shade_NAME     per ray: the surface at the hit, then the hook NAME,
 //                        which may add colour to the ray's pixel and emit
 //                        shadow rays (any-hit) and continuation rays (closest
@@ -70,7 +75,8 @@
 
 namespace raykit::kernels {
 
-inline constexpr const char* kShade = R"CLC(
+/// The renderer's crossing structs, per-object material lookup and cut-out filter (before trace.hpp).
+inline constexpr const char* kShadeData = R"CLC(
 /* Path ray of a bounce queue (raykit::cl::PathRay). */
 typedef struct {
     rk_ray ray;
@@ -135,11 +141,11 @@ typedef struct {
     uint shadows;
     uint filter;          /* 0 bilinear, 1 nearest */
     uint light_count;
-    uint has_normals;
-    uint has_texcoords;
-    uint material_id_count;
-    uint material_count;  /* including the default material (the last one) */
-    uint alpha_testing;   /* some material has alpha cut-outs: traversals test them */
+    uint object_count;    /* objects of the scene (rk_shade_object table) */
+    uint pad3;
+    uint pad4;
+    uint material_count;  /* the concatenated table's, every object's default material included */
+    uint alpha_testing;   /* some material has alpha cut-outs: the program has the leaf filter */
     uint ao_samples;      /* ao: rays per camera ray */
     float ao_radius;      /* ao: resolved on the host (> 0, or INFINITY) */
     uint pad0;
@@ -189,6 +195,127 @@ RK_DR_CHECK(settings_alpha_testing, __builtin_offsetof(rk_render_settings, alpha
 RK_DR_CHECK(settings_ao_samples, __builtin_offsetof(rk_render_settings, ao_samples) == 76);
 RK_DR_CHECK(settings_ao_radius, __builtin_offsetof(rk_render_settings, ao_radius) == 80);
 
+/* Per-object shading data (raykit::cl::ShadeObjectRecord), in object order: the object's
+   material table is materials[material_offset .. material_offset + material_count), its
+   default material (the last) included; its triangles' material ids are material_ids from its
+   rk_object's triangle_offset on (the first material_id_count triangles have one). */
+typedef struct {
+    uint material_offset;
+    uint material_count;
+    uint material_id_count;
+    uint flags;             /* RK_SHADE_NORMALS: vertex normals, RK_SHADE_UVS: texture coordinates */
+} rk_shade_object;
+#define RK_SHADE_NORMALS 1u
+#define RK_SHADE_UVS 2u
+RK_DR_CHECK(shade_object_size, sizeof(rk_shade_object) == 16);
+RK_DR_CHECK(shade_object_count, __builtin_offsetof(rk_shade_object, material_count) == 4);
+RK_DR_CHECK(shade_object_ids, __builtin_offsetof(rk_shade_object, material_id_count) == 8);
+RK_DR_CHECK(shade_object_flags, __builtin_offsetof(rk_shade_object, flags) == 12);
+
+/* Index into the concatenated material table of triangle `prim` of object `object`
+   (raykit::MaterialTable::for_triangle: no or a too large id gives the default material). */
+RK_INLINE uint rk_material_of(__global const rk_shade_object* objects, __global const uint* material_ids,
+                              const uint object, const rk_object* ob, const uint prim) {
+    const rk_shade_object so = objects[object];
+    const uint last = so.material_count - 1;
+    uint id = last;
+    if (prim < so.material_id_count) {
+        id = material_ids[ob->triangle_offset + prim];
+        if (id >= last) id = last;
+    }
+    return so.material_offset + id;
+}
+
+/* Texture coordinates of triangle `prim` of an object at barycentrics (u, v); (0, 0) for an
+   object without them (raykit::detail::interpolate_uv). */
+RK_INLINE float2 rk_uv_at(const rk_shade_object* so, const rk_object* ob, __global const rk_triangle* tris,
+                          __global const rk_vertex* vertices, const uint prim, const float u, const float v) {
+    if (!(so->flags & RK_SHADE_UVS)) return (float2)(0.0f);
+    const rk_triangle t = tris[ob->triangle_offset + prim];
+    __global const rk_vertex* vx = vertices + ob->vertex_offset;
+    return vload2(0, vx[t.v[0]].uv) * (1.0f - u - v) + vload2(0, vx[t.v[1]].uv) * u + vload2(0, vx[t.v[2]].uv) * v;
+}
+
+RK_INLINE float rk_frac(float a) {
+    if (!isfinite(a)) return 0.0f;
+    const float f = a - floor(a);
+    return f < 1.0f ? f : 0.0f;
+}
+RK_INLINE uint rk_wrap(long i, uint n) { return (uint)(i < 0 ? i + (long)n : (i >= (long)n ? i - (long)n : i)); }
+
+/* Where raykit::Texture::sample reads (colour and alpha alike): nearest (filter 1) the texel
+   (x0, y0); bilinear the texels x0|x1, y0|y1 weighted by ax, ay (wrap addressing). Rows are
+   counted from the top of the file, v from the bottom. The texture must not be empty. */
+typedef struct {
+    uint x0, x1, y0, y1;
+    float ax, ay;
+} rk_taps;
+
+RK_INLINE rk_taps rk_texture_taps(const rk_texture* t, float2 uv, uint filter) {
+    rk_taps q;
+    if (filter == 1u) {
+        const float u = rk_frac(uv.x), v = rk_frac(uv.y);
+        q.x0 = q.x1 = min((uint)(u * (float)t->width), t->width - 1);
+        q.y0 = q.y1 = t->height - 1 - min((uint)(v * (float)t->height), t->height - 1);
+        q.ax = q.ay = 0.0f;
+        return q;
+    }
+    const float fx = rk_frac(uv.x) * (float)t->width - 0.5f;
+    const float fy = rk_frac(uv.y) * (float)t->height - 0.5f;
+    const float flx = floor(fx), fly = floor(fy);
+    q.ax = fx - flx;
+    q.ay = fy - fly;
+    const long ix = (long)flx, iy = (long)fly;
+    q.x0 = rk_wrap(ix, t->width);
+    q.x1 = rk_wrap(ix + 1, t->width);
+    q.y0 = t->height - 1 - rk_wrap(iy, t->height);
+    q.y1 = t->height - 1 - rk_wrap(iy + 1, t->height);
+    return q;
+}
+
+#ifdef RK_LEAF_FILTER
+/* ---- alpha cut-outs, the walk's leaf filter (kernels/raykit/kernels/trace.hpp): the twins of
+   raykit::detail::cut_out and Texture::sample_alpha. Compiled only for scenes with cut-outs. */
+typedef struct {
+    __global const rk_material* materials;
+    __global const uint* material_ids;
+    __global const rk_shade_object* shade_objects;
+    __global const rk_vertex* vertices;
+    __global const rk_triangle* tris;
+    __global const rk_texture* textures;
+    __global const uchar4* texels;
+    uint filter;      /* 0 bilinear, 1 nearest */
+} rk_filter;
+
+RK_INLINE float rk_alpha_byte(const rk_filter* a, const rk_texture* t, uint x, uint y) {
+    return (float)a->texels[t->offset + y * t->width + x].w;
+}
+
+RK_INLINE float rk_texture_alpha(const rk_filter* a, int texture, float2 uv) {
+    if (texture < 0) return 1.0f;
+    const rk_texture t = a->textures[texture];
+    if (t.width == 0 || t.height == 0) return 1.0f;
+    const float k = 1.0f / 255.0f;
+    const rk_taps q = rk_texture_taps(&t, uv, a->filter);
+    if (a->filter == 1u) return rk_alpha_byte(a, &t, q.x0, q.y0) * k;
+    const float va = rk_alpha_byte(a, &t, q.x0, q.y0), vb = rk_alpha_byte(a, &t, q.x1, q.y0);
+    const float vc = rk_alpha_byte(a, &t, q.x0, q.y1), vd = rk_alpha_byte(a, &t, q.x1, q.y1);
+    return ((va * (1.0f - q.ax) + vb * q.ax) * (1.0f - q.ay) + (vc * (1.0f - q.ax) + vd * q.ax) * q.ay) * k;
+}
+
+/* False when the hit (prim, u, v) of object `object` lies on a cut-out texel of an
+   alpha-tested material. */
+RK_INLINE bool rk_keep(const rk_filter* f, uint object, const rk_object* ob, uint prim, float u, float v) {
+    __global const rk_material* m = f->materials + rk_material_of(f->shade_objects, f->material_ids, object, ob, prim);
+    if (!m->alpha_tested) return true;
+    const rk_shade_object so = f->shade_objects[object];
+    return !(rk_texture_alpha(f, m->texture, rk_uv_at(&so, ob, f->tris, f->vertices, prim, u, v)) < 0.5f);
+}
+#endif
+)CLC";
+
+/// The renderer's kernels (after kernels/raykit/kernels/trace.hpp).
+inline constexpr const char* kShade = R"CLC(
 /* ---- random numbers: the twins of raykit::SampleRng and raykit::hash_seed (render/shade.hpp) */
 typedef struct {
     ulong state;
@@ -332,58 +459,68 @@ RK_INLINE float3 rk_offset_origin(float3 p, float3 n) {
 }
 
 /* ---- textures: the twins of raykit::Texture::sample */
-RK_INLINE float rk_frac(float a) {
-    if (!isfinite(a)) return 0.0f;
-    const float f = a - floor(a);
-    return f < 1.0f ? f : 0.0f;
-}
 RK_INLINE float4 rk_texel(const rk_ctx* ctx, const rk_texture* t, uint x, uint y) {
     const uchar4 b = ctx->texels[t->offset + y * t->width + x];
     const float k = 1.0f / 255.0f;
     if (t->srgb) return (float4)(ctx->srgb_lut[b.x], ctx->srgb_lut[b.y], ctx->srgb_lut[b.z], (float)b.w * k);
     return (float4)((float)b.x * k, (float)b.y * k, (float)b.z * k, (float)b.w * k);
 }
-RK_INLINE uint rk_wrap(long i, uint n) { return (uint)(i < 0 ? i + (long)n : (i >= (long)n ? i - (long)n : i)); }
-
 RK_INLINE float4 rk_texture_sample(const rk_ctx* ctx, int texture, float2 uv) {
     if (texture < 0) return (float4)(1.0f);
     const rk_texture t = ctx->textures[texture];
     if (t.width == 0 || t.height == 0) return (float4)(0.0f);
-    if (ctx->set.filter == 1u) {
-        const float u = rk_frac(uv.x), v = rk_frac(uv.y);
-        const uint x = min((uint)(u * (float)t.width), t.width - 1);
-        const uint yu = min((uint)(v * (float)t.height), t.height - 1);
-        return rk_texel(ctx, &t, x, t.height - 1 - yu);
-    }
-    const float fx = rk_frac(uv.x) * (float)t.width - 0.5f;
-    const float fy = rk_frac(uv.y) * (float)t.height - 0.5f;
-    const float flx = floor(fx), fly = floor(fy);
-    const float ax = fx - flx, ay = fy - fly;
-    const long ix = (long)flx, iy = (long)fly;
-    const uint x0 = rk_wrap(ix, t.width), x1 = rk_wrap(ix + 1, t.width);
-    const uint y0 = t.height - 1 - rk_wrap(iy, t.height), y1 = t.height - 1 - rk_wrap(iy + 1, t.height);
-    const float4 a = rk_texel(ctx, &t, x0, y0), b = rk_texel(ctx, &t, x1, y0);
-    const float4 c = rk_texel(ctx, &t, x0, y1), d = rk_texel(ctx, &t, x1, y1);
-    return (a * (1.0f - ax) + b * ax) * (1.0f - ay) + (c * (1.0f - ax) + d * ax) * ay;
+    const rk_taps q = rk_texture_taps(&t, uv, ctx->set.filter);
+    if (ctx->set.filter == 1u) return rk_texel(ctx, &t, q.x0, q.y0);
+    const float4 a = rk_texel(ctx, &t, q.x0, q.y0), b = rk_texel(ctx, &t, q.x1, q.y0);
+    const float4 c = rk_texel(ctx, &t, q.x0, q.y1), d = rk_texel(ctx, &t, q.x1, q.y1);
+    return (a * (1.0f - q.ax) + b * q.ax) * (1.0f - q.ay) + (c * (1.0f - q.ax) + d * q.ax) * q.ay;
 }
 
 /* ---- the surface at a hit: the twin of raykit::surface_point */
-RK_INLINE rk_surface rk_surface_at(const rk_ctx* ctx, __global const rk_triangle* tris, __global const float* pos,
-                                   __global const float* normals, __global const float* texcoords,
-                                   __global const uint* material_ids, const rk_hit* h, float3 d) {
-    const rk_triangle t = tris[h->prim];
+
+/* Affine::point: M·(p, 1) with the same fused multiply-adds. */
+RK_INLINE float3 rk_affine_point(__global const float* m, float3 p) {
+    return (float3)(fma(m[0], p.x, fma(m[1], p.y, fma(m[2], p.z, m[3]))),
+                    fma(m[4], p.x, fma(m[5], p.y, fma(m[6], p.z, m[7]))),
+                    fma(m[8], p.x, fma(m[9], p.y, fma(m[10], p.z, m[11]))));
+}
+/* A normal in object space to the world: by the inverse transpose (world_to_object's 3x3
+   transposed); an identity instance's is not mapped. */
+RK_INLINE float3 rk_normal_to_world(__global const rk_instance* in, float3 n) {
+    if (in->identity) return n;
+    __global const float* a = in->world_to_object;
+    return (float3)(a[0] * n.x + a[4] * n.y + a[8] * n.z, a[1] * n.x + a[5] * n.y + a[9] * n.z,
+                    a[2] * n.x + a[6] * n.y + a[10] * n.z);
+}
+
+/* The surface of instance hit->inst at the hit, computed in object space and mapped to the
+   world (identity instances are not mapped); d is the unit world ray direction. */
+RK_INLINE rk_surface rk_surface_at(const rk_ctx* ctx, __global const rk_instance* instances,
+                                   __global const rk_object* objects, __global const rk_shade_object* shade_objects,
+                                   __global const rk_triangle* tris, __global const float* pos,
+                                   __global const rk_vertex* vertices, __global const uint* material_ids,
+                                   const rk_hit* h, float3 d) {
+    __global const rk_instance* in = instances + h->inst;
+    const uint object = in->object;
+    const rk_object ob = objects[object];
+    const rk_shade_object so = shade_objects[object];
+    const rk_triangle t = tris[ob.triangle_offset + h->prim];
+    __global const float* p = pos + (size_t)3 * ob.vertex_offset;
+    __global const rk_vertex* vx = vertices + ob.vertex_offset;
     const float w0 = 1.0f - h->u - h->v;
-    const float3 p0 = vload3(t.v[0], pos), p1 = vload3(t.v[1], pos), p2 = vload3(t.v[2], pos);
+    const float3 p0 = vload3(t.v[0], p), p1 = vload3(t.v[1], p), p2 = vload3(t.v[2], p);
     rk_surface s;
     s.p = p0 * w0 + p1 * h->u + p2 * h->v;
+    if (!in->identity) s.p = rk_affine_point(in->object_to_world, s.p);
     s.d = d;
-    float3 ng = cross(p1 - p0, p2 - p0);
+    float3 ng = rk_normal_to_world(in, cross(p1 - p0, p2 - p0));
     const float lg = length(ng);
     ng = lg > 0.0f && isfinite(lg) ? ng / lg : -d;
     int entering = dot(ng, d) < 0.0f;
     float3 ns = ng;
-    if (ctx->set.has_normals) {
-        const float3 n = vload3(t.v[0], normals) * w0 + vload3(t.v[1], normals) * h->u + vload3(t.v[2], normals) * h->v;
+    if (so.flags & RK_SHADE_NORMALS) {
+        const float3 n = rk_normal_to_world(in, vload3(0, vx[t.v[0]].normal) * w0 + vload3(0, vx[t.v[1]].normal) * h->u +
+                                                    vload3(0, vx[t.v[2]].normal) * h->v);
         const float ln = length(n);
         if (ln > 1e-12f && isfinite(ln)) {
             ns = n / ln;
@@ -393,149 +530,12 @@ RK_INLINE rk_surface rk_surface_at(const rk_ctx* ctx, __global const rk_triangle
     s.entering = entering;
     s.ng = dot(ng, d) > 0.0f ? -ng : ng;
     s.ns = dot(ns, d) > 0.0f ? -ns : ns;
-    s.uv = (float2)(0.0f);
-    if (ctx->set.has_texcoords)
-        s.uv = vload2(t.v[0], texcoords) * w0 + vload2(t.v[1], texcoords) * h->u + vload2(t.v[2], texcoords) * h->v;
-    const uint last = ctx->set.material_count - 1;
-    uint id = last;
-    if (h->prim < ctx->set.material_id_count) {
-        id = material_ids[h->prim];
-        if (id >= last) id = last;
-    }
-    s.material = id;
-    const rk_material m = ctx->materials[id];
+    s.uv = rk_uv_at(&so, &ob, tris, vertices, h->prim, h->u, h->v);
+    s.material = rk_material_of(shade_objects, material_ids, object, &ob, h->prim);
+    const rk_material m = ctx->materials[s.material];
     s.base = rk_f3(m.kd);
     if (m.texture >= 0) s.base *= rk_texture_sample(ctx, m.texture, s.uv).xyz;
     return s;
-}
-
-/* ---- alpha cut-outs: the twins of raykit::detail::cut_out and Texture::sample_alpha */
-typedef struct {
-    __global const rk_material* materials;
-    __global const uint* material_ids;
-    __global const float* texcoords;
-    __global const rk_texture* textures;
-    __global const uchar4* texels;
-    rk_render_settings set;
-} rk_alpha_scene;
-
-RK_INLINE float rk_alpha_byte(const rk_alpha_scene* a, const rk_texture* t, uint x, uint y) {
-    return (float)a->texels[t->offset + y * t->width + x].w;
-}
-
-RK_INLINE float rk_texture_alpha(const rk_alpha_scene* a, int texture, float2 uv) {
-    if (texture < 0) return 1.0f;
-    const rk_texture t = a->textures[texture];
-    if (t.width == 0 || t.height == 0) return 1.0f;
-    const float k = 1.0f / 255.0f;
-    if (a->set.filter == 1u) {
-        const float u = rk_frac(uv.x), v = rk_frac(uv.y);
-        const uint x = min((uint)(u * (float)t.width), t.width - 1);
-        const uint yu = min((uint)(v * (float)t.height), t.height - 1);
-        return rk_alpha_byte(a, &t, x, t.height - 1 - yu) * k;
-    }
-    const float fx = rk_frac(uv.x) * (float)t.width - 0.5f;
-    const float fy = rk_frac(uv.y) * (float)t.height - 0.5f;
-    const float flx = floor(fx), fly = floor(fy);
-    const float ax = fx - flx, ay = fy - fly;
-    const long ix = (long)flx, iy = (long)fly;
-    const uint x0 = rk_wrap(ix, t.width), x1 = rk_wrap(ix + 1, t.width);
-    const uint y0 = t.height - 1 - rk_wrap(iy, t.height), y1 = t.height - 1 - rk_wrap(iy + 1, t.height);
-    const float va = rk_alpha_byte(a, &t, x0, y0), vb = rk_alpha_byte(a, &t, x1, y0);
-    const float vc = rk_alpha_byte(a, &t, x0, y1), vd = rk_alpha_byte(a, &t, x1, y1);
-    return ((va * (1.0f - ax) + vb * ax) * (1.0f - ay) + (vc * (1.0f - ax) + vd * ax) * ay) * k;
-}
-
-/* True when the hit (prim, u, v) lies on a cut-out texel of an alpha-tested material. */
-RK_INLINE bool rk_cut_out(const rk_alpha_scene* a, __global const rk_triangle* tris, uint prim, float u, float v) {
-    const uint last = a->set.material_count - 1;
-    uint id = last;
-    if (prim < a->set.material_id_count) {
-        id = a->material_ids[prim];
-        if (id >= last) id = last;
-    }
-    __global const rk_material* m = a->materials + id;
-    if (!m->alpha_tested) return false;
-    float2 uv = (float2)(0.0f);
-    if (a->set.has_texcoords) {
-        const rk_triangle t = tris[prim];
-        uv = vload2(t.v[0], a->texcoords) * (1.0f - u - v) + vload2(t.v[1], a->texcoords) * u +
-             vload2(t.v[2], a->texcoords) * v;
-    }
-    return rk_texture_alpha(a, m->texture, uv) < 0.5f;
-}
-
-/* rk_trace_tree (kernels/raykit/kernels/trace.hpp) for one mesh, the twin of the CPU's
-   Tracer<.., kAlpha>::closest / any (render/shade.hpp): with `alpha`, the cut-out test in the
-   leaves (a cut-out candidate is skipped and the ray goes on through it); with `steps`, the
-   inner nodes + leaves visited are written there (raykit::TraversalStats nodes + leaves: same
-   walk, same order, so the same count). Its own loop (the leaf test with cut-outs, the count)
-   around trace.hpp's inner-node step and pop (rk_descend, rk_pop), so the plain trace kernels
-   stay as they are; used only when a scene has cut-outs or a hook asks for steps. */
-RK_INLINE bool rk_dr_walk(__global const rk_node* restrict nodes, __global const uint* restrict prim_ids,
-                          __global const rk_triangle* restrict tris, __global const float* restrict pos,
-                          const uint node_count, const rk_ray* ray, const int any, rk_hit* hit,
-                          const rk_alpha_scene* a, const int alpha, uint* steps) {
-    uint visited = 0;
-    if (steps) *steps = 0u;
-    if (node_count == 0) return false;
-    const rk_slab_ray s = rk_slab_prepare(ray->org, ray->dir, ray->tmin);
-    const rk_wt_ray w = rk_wt_prepare(ray->org, ray->dir);
-    const float tmin = ray->tmin, tlimit = ray->tmax;
-    float tmax = ray->tmax;
-    float troot;
-    if (!rk_slab(&s, nodes, tmax, &troot)) return false;
-    uint st_node[RK_MAX_DEPTH];
-    float st_t[RK_MAX_DEPTH];
-    int sp = 0;
-    uint cur = 0;
-    bool found = false;
-    for (;;) {
-        __global const rk_node* n = nodes + cur;
-        const uint index = n->index, count = n->count;
-        ++visited;
-        if (count != 0) {
-            for (uint k = index; k < index + count; ++k) {
-                const uint p = prim_ids[k];
-                const rk_triangle t = tris[p];
-                const float3 p0 = vload3(t.v[0], pos), p1 = vload3(t.v[1], pos), p2 = vload3(t.v[2], pos);
-                float th, uh, vh;
-                if (any) {
-                    if (rk_wt_intersect(&w, p0, p1, p2, tmin, tlimit, &th, &uh, &vh) &&
-                        !(alpha && rk_cut_out(a, tris, p, uh, vh))) {
-                        if (steps) *steps = visited;
-                        return true;
-                    }
-                } else if (rk_wt_intersect(&w, p0, p1, p2, tmin, tmax, &th, &uh, &vh) &&
-                           (th < hit->t || p < hit->prim) && !(alpha && rk_cut_out(a, tris, p, uh, vh))) {
-                    hit->t = th;
-                    hit->u = uh;
-                    hit->v = vh;
-                    hit->prim = p;
-                    tmax = th;
-                    found = true;
-                }
-            }
-        } else {
-            const int step = rk_descend(&s, nodes, index, tmax, &cur, st_node, st_t, &sp);
-            if (step < 0) break;
-            if (step > 0) continue;
-        }
-        if (!rk_pop(&cur, st_node, st_t, &sp, tmax)) break;
-    }
-    if (steps) *steps = visited;
-    return found;
-}
-
-/* Closest (any == 0) or any hit of one mesh, with cut-outs when the scene has them, and the
-   traversal steps when `steps` is not 0. */
-RK_INLINE bool rk_dr_trace(__global const rk_node* nodes, __global const uint* prim_ids,
-                           __global const rk_triangle* tris, __global const float* pos, const uint node_count,
-                           const rk_ray* r, const int any, rk_hit* h, const rk_alpha_scene* a, uint* steps) {
-    if (a->set.alpha_testing || steps)
-        return rk_dr_walk(nodes, prim_ids, tris, pos, node_count, r, any, h, a, a->set.alpha_testing != 0u, steps);
-    rk_object ob = {0u, node_count, 0u, 0u, 0u, 0u, 0u, 0u};
-    return rk_trace_tree(nodes, prim_ids, tris, pos, &ob, r, r->tmax, any, h);
 }
 
 /* ---- fixed kernels */
@@ -591,41 +591,47 @@ __kernel void rk_dr_camera(const rk_camera cam, __global rk_path_ray* queue, __g
     if (sample == 0u) image[i] = (float4)(0.0f);
 }
 
-#define RK_ALPHA_ARGS __global const rk_material* materials, __global const uint* material_ids, \
-    __global const float* texcoords, __global const rk_texture* textures, __global const uchar4* texels, \
-    const rk_render_settings set
-#define RK_ALPHA_SCENE const rk_alpha_scene a = {materials, material_ids, texcoords, textures, texels, set}
+/* The renderer's scene arguments after RK_SCENE_PARAMS (kernels/raykit/kernels/trace.hpp):
+   what shading and the cut-out filter read. */
+#define RK_DR_SHADE_PARAMS __global const rk_vertex* vertices, __global const uint* material_ids, \
+    __global const rk_shade_object* shade_objects, __global const rk_material* materials, \
+    __global const rk_texture* textures, __global const uchar4* texels, const rk_render_settings set
+#ifdef RK_LEAF_FILTER
+#define RK_DR_FILTER(fp) const rk_filter rk_dr_filter_value = {materials, material_ids, shade_objects, vertices, \
+    tris, textures, texels, set.filter}; const rk_filter* fp = &rk_dr_filter_value
+#else
+#define RK_DR_FILTER(fp) const rk_filter* fp = 0
+#endif
 
 /* Closest hits of queue[0 .. n); with RK_DR_STEPS (defined for hooks that declare
    traversal_steps) also the traversal steps of each ray into steps[i]. */
-__kernel void rk_dr_closest(__global const rk_node* nodes, __global const uint* prim_ids,
-                            __global const rk_triangle* tris, __global const float* pos, const uint node_count,
-                            __global const rk_path_ray* queue, __global rk_hit* hits, __global uint* steps,
-                            const uint n, RK_ALPHA_ARGS) {
+__kernel void rk_dr_closest(RK_SCENE_PARAMS, __global const rk_path_ray* queue, __global rk_hit* hits,
+                            __global uint* steps, const uint n, RK_DR_SHADE_PARAMS) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
-    RK_ALPHA_SCENE;
+    RK_SCENE_MAKE(sc);
+    RK_DR_FILTER(f);
     const rk_ray r = queue[i].ray;
     rk_hit h = rk_miss();
 #ifdef RK_DR_STEPS
     uint st = 0u;
-    if (rk_dr_trace(nodes, prim_ids, tris, pos, node_count, &r, 0, &h, &a, &st) && h.prim != RK_INVALID) h.inst = 0u;
+    rk_walk(&sc, &r, 0, &h, f, &st);
     steps[i] = st;
 #else
-    if (rk_dr_trace(nodes, prim_ids, tris, pos, node_count, &r, 0, &h, &a, 0) && h.prim != RK_INVALID) h.inst = 0u;
+    rk_walk(&sc, &r, 0, &h, f, 0);
 #endif
     hits[i] = h;
 }
 
-__kernel void rk_dr_shadow(__global const rk_node* nodes, __global const uint* prim_ids,
-                           __global const rk_triangle* tris, __global const float* pos, const uint node_count,
-                           __global const rk_shadow_ray* queue, const uint n, __global float* image, RK_ALPHA_ARGS) {
+__kernel void rk_dr_shadow(RK_SCENE_PARAMS, __global const rk_shadow_ray* queue, const uint n, __global float* image,
+                           RK_DR_SHADE_PARAMS) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
-    RK_ALPHA_SCENE;
+    RK_SCENE_MAKE(sc);
+    RK_DR_FILTER(f);
     const rk_shadow_ray s = queue[i];
     rk_hit h = rk_miss();
-    if (rk_dr_trace(nodes, prim_ids, tris, pos, node_count, &s.ray, 1, &h, &a, 0)) return;
+    if (rk_walk(&sc, &s.ray, 1, &h, f, 0)) return;
     __global float* px = image + (size_t)4 * s.pixel;
     rk_atomic_add_float(px + 0, s.color[0]);
     rk_atomic_add_float(px + 1, s.color[1]);
@@ -637,9 +643,10 @@ __kernel void rk_dr_shadow(__global const rk_node* nodes, __global const uint* p
 inline constexpr const char* kShadeStage = R"CLC(
 __kernel void rk_dr_shade_@NAME@(__global const rk_path_ray* queue, __global const rk_hit* hits,
                                  __global const uint* steps, const uint n,
+                                 __global const rk_instance* instances, __global const rk_object* objects,
                                  __global const rk_triangle* tris, __global const float* pos,
-                                 __global const float* normals, __global const float* texcoords,
-                                 __global const uint* material_ids, __global const rk_material* materials,
+                                 __global const rk_vertex* vertices, __global const uint* material_ids,
+                                 __global const rk_shade_object* shade_objects, __global const rk_material* materials,
                                  __global const rk_texture* textures, __global const uchar4* texels,
                                  __global const float* srgb_lut, __global const rk_light* lights,
                                  const rk_render_settings set, __global float* image,
@@ -678,7 +685,8 @@ __kernel void rk_dr_shade_@NAME@(__global const rk_path_ray* queue, __global con
     s.material = 0u;
     s.entering = 1;
     if (hit.prim != RK_INVALID)
-        s = rk_surface_at(&ctx, tris, pos, normals, texcoords, material_ids, &hit, normalize(rk_f3(path.ray.dir)));
+        s = rk_surface_at(&ctx, instances, objects, shade_objects, tris, pos, vertices, material_ids, &hit,
+                          normalize(rk_f3(path.ray.dir)));
     @NAME@(&ctx, &path, &hit, &s, params);
 }
 )CLC";

@@ -1,17 +1,34 @@
-// raykit/kernels/trace.hpp — closest-hit and any-hit traversal on the device.
+// raykit/kernels/trace.hpp — the one closest-hit / any-hit walk on the device.
 //
-// rk_trace_tree() is the twin of raykit::traverse() + the leaf loops of
-// scene/trace.hpp: the same front-to-back order (nearer child first, the
-// left one on equal entry distances), the same pruning (a popped node is
-// skipped when its entry is beyond tmax·RK_SLAB_EXIT_SCALE), the same tie rule
-// (smaller t, then smaller triangle index), a stack of RK_MAX_DEPTH entries.
-// The CPU throws on a tree deeper than that; here the walk stops with the
-// hits found so far (raykit's builders never emit such trees).
+// rk_walk() is the twin of raykit::closest_hit / any_hit over a Scene
+// (scene/trace.hpp + Scene's instance leaves): the same front-to-back order
+// (nearer child first, the left one on equal entry distances), the same
+// pruning (a popped node is skipped when its entry is beyond
+// tmax·RK_SLAB_EXIT_SCALE), the same tie rule (smaller t, then smaller
+// instance, then smaller triangle). Both levels are walked by one function:
+// a top-level leaf enters its instances one after the other (the ray mapped
+// into the object's space, an identity instance's ray used as it is); each
+// object's walk is an inner loop (the hot one, as tight as a plain mesh
+// walk) on the same stack above the top level's entries and, when its part
+// of the stack is empty, hands back to the next instance or the top level.
+// A plain mesh is the walk of one object with no top level (mesh mode).
+// Each level's stack holds RK_MAX_DEPTH entries; the CPU throws on a deeper
+// tree, here the walk stops with the hits found so far (raykit's builders
+// never emit such trees).
+//
+// Leaf filter: when the program defines RK_LEAF_FILTER (before this part) it
+// also defines the type rk_filter and
+//   bool rk_keep(const rk_filter* f, uint object, const rk_object* ob, uint prim, float u, float v)
+// which rejects candidate hits (the renderer's alpha cut-outs; a walk given
+// no filter, f == 0, keeps every hit); without it nothing of the filter is
+// compiled, so scenes without cut-outs pay nothing. Traversal steps: with
+// `steps` not 0 the inner nodes + leaves of the bottom-level trees visited
+// are counted there (raykit::TraversalStats of a Scene query: the top level
+// is not counted).
 //
 // Kernels (one work-item per ray, n = number of rays):
 //   rk_mesh_closest / rk_mesh_any     one mesh: hits[i] (inst 0) / occluded[i] (1 or 0)
-//   rk_scene_closest / rk_scene_any   two levels: top-level tree over instances,
-//                                     rays mapped into object space per instance
+//   rk_scene_closest / rk_scene_any   two levels: top-level tree over instances
 #pragma once
 
 namespace raykit::kernels {
@@ -34,13 +51,34 @@ RK_INLINE bool rk_closer(const rk_hit* a, const rk_hit* b) {
     return a->prim < b->prim;
 }
 
-/* One inner node of an ordered walk over `base`: slab-tests both children of
-   the node whose first child is `index`; enters the nearer one hit (*cur) and
-   pushes the farther one with its entry distance. Returns 1 when a child is
-   entered, 0 when neither is (pop next), -1 when the stack is full (a tree
-   deeper than RK_MAX_DEPTH, which raykit's builders never make). */
+#ifndef RK_LEAF_FILTER
+typedef struct {
+    uint unused;
+} rk_filter;
+#endif
+
+/* What a walk runs over: the scene's concatenated object arrays and its top
+   level, or (mesh != 0) the one object `mesh_object` with no top level. */
+typedef struct {
+    __global const rk_node* top;
+    __global const uint* top_ids;
+    __global const rk_instance* instances;
+    __global const rk_object* objects;
+    __global const rk_node* nodes;
+    __global const uint* prim_ids;
+    __global const rk_triangle* tris;
+    __global const float* pos;
+    uint top_count;
+    int mesh;
+    rk_object mesh_object;
+} rk_scene;
+
+/* One inner node: slab-tests both children of the node whose first child is
+   `index` (in `base`); enters the nearer one hit (*cur) and pushes the
+   farther one with its entry distance. Returns 1 when a child is entered, 0
+   when neither is (pop next), -1 when the stack is full (*sp == limit). */
 RK_INLINE int rk_descend(const rk_slab_ray* s, __global const rk_node* base, const uint index, const float tmax,
-                         uint* cur, uint* st_node, float* st_t, int* sp) {
+                         uint* cur, uint* st_node, float* st_t, int* sp, const int limit) {
     float tl, tr;
     const bool hl = rk_slab(s, base + index, tmax, &tl);
     const bool hr = rk_slab(s, base + index + 1, tmax, &tr);
@@ -52,7 +90,7 @@ RK_INLINE int rk_descend(const rk_slab_ray* s, __global const rk_node* base, con
             farc = index;
             tf = tl;
         }
-        if (*sp == RK_MAX_DEPTH) return -1;
+        if (*sp == limit) return -1;
         st_node[*sp] = farc;
         st_t[*sp] = tf;
         ++*sp;
@@ -66,9 +104,9 @@ RK_INLINE int rk_descend(const rk_slab_ray* s, __global const rk_node* base, con
     return 0;
 }
 
-/* Pops the next entry still in front of tmax into *cur; false when none is left. */
-RK_INLINE bool rk_pop(uint* cur, const uint* st_node, const float* st_t, int* sp, const float tmax) {
-    while (*sp > 0) {
+/* Pops the next entry above `floor` still in front of tmax into *cur; false when none is left. */
+RK_INLINE bool rk_pop(uint* cur, const uint* st_node, const float* st_t, int* sp, const int floor, const float tmax) {
+    while (*sp > floor) {
         --*sp;
         if (st_t[*sp] <= tmax * RK_SLAB_EXIT_SCALE) {
             *cur = st_node[*sp];
@@ -78,56 +116,143 @@ RK_INLINE bool rk_pop(uint* cur, const uint* st_node, const float* st_t, int* sp
     return false;
 }
 
-/* Closest hit (any == 0: fills *hit, prim relative to the object, inst
-   untouched) or any hit (any != 0) of `ray` limited to [ray->tmin, tmax]
-   with one bottom-level tree. Returns true when something was hit. */
-RK_INLINE bool rk_trace_tree(__global const rk_node* restrict nodes, __global const uint* restrict prim_ids,
-                   __global const rk_triangle* restrict tris, __global const float* restrict pos,
-                   const rk_object* ob, const rk_ray* ray, float tmax, const int any, rk_hit* hit) {
-    if (ob->node_count == 0) return false;
-    nodes += ob->node_offset;
-    prim_ids += ob->prim_offset;
-    tris += ob->triangle_offset;
-    pos += (size_t)3 * ob->vertex_offset;
-    const rk_slab_ray s = rk_slab_prepare(ray->org, ray->dir, ray->tmin);
-    const rk_wt_ray w = rk_wt_prepare(ray->org, ray->dir);
-    const float tmin = ray->tmin, tlimit = tmax;
-    float troot;
-    if (!rk_slab(&s, nodes, tmax, &troot)) return false;
-    uint st_node[RK_MAX_DEPTH];
-    float st_t[RK_MAX_DEPTH];
-    int sp = 0;
-    uint cur = 0;
-    bool found = false;
+/* Scene::object_ray: the world ray in the instance's object space (an identity instance's as it is). */
+RK_INLINE rk_ray rk_object_ray(__global const rk_instance* in, const rk_ray* r, float tmax) {
+    rk_ray o = *r;
+    o.tmax = tmax;
+    if (in->identity) return o;
+    for (int k = 0; k < 3; ++k) {
+        __global const float* m = in->world_to_object + 4 * k;
+        o.org[k] = fma(m[0], r->org[0], fma(m[1], r->org[1], fma(m[2], r->org[2], m[3])));
+        o.dir[k] = fma(m[0], r->dir[0], fma(m[1], r->dir[1], m[2] * r->dir[2]));
+    }
+    return o;
+}
+
+/* Stack entries of a walk: the top level's (at most RK_MAX_DEPTH) below the current object's
+   (at most RK_MAX_DEPTH). */
+#define RK_WALK_STACK (2 * RK_MAX_DEPTH)
+
+/* Closest hit (any == 0: *best improved in place, inst set; true when it was)
+   or any hit (any != 0: true when something blocks) of `r` in [r->tmin, r->tmax]. */
+RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hit* best, const rk_filter* f,
+                       uint* steps) {
+    if (steps) *steps = 0u;
+    float tmax = r->tmax;
+    uint st_node[RK_WALK_STACK];
+    float st_t[RK_WALK_STACK];
+    int sp = 0;                 /* the top level's entries, then the current object's */
+    uint tcur = 0;              /* top-level node */
+    uint leaf_k = 0, leaf_end = sc->mesh ? 1u : 0u;  /* instances of the top-level leaf still to walk */
+    bool top_pending = !sc->mesh, found = false;
+    const rk_slab_ray top_s = rk_slab_prepare(r->org, r->dir, r->tmin);
+    if (!sc->mesh) {
+        float troot;
+        if (sc->top_count == 0 || !rk_slab(&top_s, sc->top, tmax, &troot)) return false;
+    }
     for (;;) {
-        __global const rk_node* n = nodes + cur;
-        const uint index = n->index, count = n->count;
-        if (count != 0) {
-            for (uint k = index; k < index + count; ++k) {
-                const uint p = prim_ids[k];
-                const rk_triangle t = tris[p];
-                const float3 p0 = vload3(t.v[0], pos), p1 = vload3(t.v[1], pos), p2 = vload3(t.v[2], pos);
-                float th, uh, vh;
-                if (any) {
-                    if (rk_wt_intersect(&w, p0, p1, p2, tmin, tlimit, &th, &uh, &vh)) return true;
-                } else if (rk_wt_intersect(&w, p0, p1, p2, tmin, tmax, &th, &uh, &vh) &&
-                           (th < hit->t || p < hit->prim)) {
-                    hit->t = th;
-                    hit->u = uh;
-                    hit->v = vh;
-                    hit->prim = p;
-                    tmax = th;
-                    found = true;
-                }
+        if (leaf_k < leaf_end) {  /* the next instance of the top-level leaf: its object's walk */
+            rk_ray o = *r;
+            rk_object ob;
+            uint inst = 0u, object = 0u;
+            bool mapped = false;  /* the ray differs from the world ray (else top_s serves) */
+            if (sc->mesh) {
+                ob = sc->mesh_object;
+            } else {
+                inst = sc->top_ids[leaf_k];
+                __global const rk_instance* in = sc->instances + inst;
+                object = in->object;
+                ob = sc->objects[object];
+                o = rk_object_ray(in, r, tmax);
+                mapped = !in->identity;
             }
-        } else {
-            const int step = rk_descend(&s, nodes, index, tmax, &cur, st_node, st_t, &sp);
-            if (step < 0) return found;
-            if (step > 0) continue;
+            ++leaf_k;
+            if (ob.node_count == 0) continue;
+            __global const rk_node* restrict nodes = sc->nodes + ob.node_offset;
+            __global const uint* restrict prim_ids = sc->prim_ids + ob.prim_offset;
+            __global const rk_triangle* restrict tris = sc->tris + ob.triangle_offset;
+            __global const float* restrict pos = sc->pos + (size_t)3 * ob.vertex_offset;
+            const rk_slab_ray s = mapped ? rk_slab_prepare(o.org, o.dir, o.tmin) : top_s;
+            const rk_wt_ray w = rk_wt_prepare(o.org, o.dir);
+            float troot;
+            if (!rk_slab(&s, nodes, tmax, &troot)) continue;
+            const int floor = sp;  /* the object's stack entries start here */
+            uint cur = 0u;
+            for (;;) {
+                __global const rk_node* n = nodes + cur;
+                const uint index = n->index, count = n->count;
+                if (steps) ++*steps;
+                if (count != 0) {
+                    for (uint k = index; k < index + count; ++k) {
+                        const uint p = prim_ids[k];
+                        const rk_triangle t = tris[p];
+                        const float3 p0 = vload3(t.v[0], pos), p1 = vload3(t.v[1], pos), p2 = vload3(t.v[2], pos);
+                        float th, uh, vh;
+                        if (!rk_wt_intersect(&w, p0, p1, p2, r->tmin, tmax, &th, &uh, &vh)) continue;
+                        /* Hit::closer_than against the best so far (th <= tmax = best->t when there is one) */
+                        if (!any && !(th < best->t || inst < best->inst || (inst == best->inst && p < best->prim)))
+                            continue;
+#ifdef RK_LEAF_FILTER
+                        if (f && !rk_keep(f, object, &ob, p, uh, vh)) continue;
+#endif
+                        if (any) return true;
+                        best->t = th;
+                        best->u = uh;
+                        best->v = vh;
+                        best->prim = p;
+                        best->inst = inst;
+                        tmax = th;
+                        found = true;
+                    }
+                } else {
+                    const int step = rk_descend(&s, nodes, index, tmax, &cur, st_node, st_t, &sp, floor + RK_MAX_DEPTH);
+                    if (step < 0) return found;
+                    if (step > 0) continue;
+                }
+                if (!rk_pop(&cur, st_node, st_t, &sp, floor, tmax)) break;
+            }
+            continue;
         }
-        if (!rk_pop(&cur, st_node, st_t, &sp, tmax)) return found;
+        if (sc->mesh) return found;
+        /* the top level: the next node in front of tmax, down to a leaf */
+        if (!top_pending && !rk_pop(&tcur, st_node, st_t, &sp, 0, tmax)) return found;
+        top_pending = false;
+        __global const rk_node* n = sc->top + tcur;
+        if (n->count != 0) {
+            leaf_k = n->index;
+            leaf_end = n->index + n->count;
+            continue;
+        }
+        const int step = rk_descend(&top_s, sc->top, n->index, tmax, &tcur, st_node, st_t, &sp, RK_MAX_DEPTH);
+        if (step < 0) return found;
+        top_pending = step > 0;
     }
 }
+
+RK_INLINE rk_scene rk_mesh_scene(__global const rk_node* nodes, __global const uint* prim_ids,
+                                 __global const rk_triangle* tris, __global const float* pos, const uint node_count) {
+    rk_scene sc;
+    sc.top = nodes;
+    sc.top_ids = prim_ids;
+    sc.instances = 0;
+    sc.objects = 0;
+    sc.nodes = nodes;
+    sc.prim_ids = prim_ids;
+    sc.tris = tris;
+    sc.pos = pos;
+    sc.top_count = 0u;
+    sc.mesh = 1;
+    rk_object ob = {0u, node_count, 0u, 0u, 0u, 0u, 0u, 0u};
+    sc.mesh_object = ob;
+    return sc;
+}
+
+/* The kernel parameters of a two-level scene, and the rk_scene made of them. */
+#define RK_SCENE_PARAMS __global const rk_node* top, const uint top_count, __global const uint* top_ids, \
+    __global const rk_instance* instances, __global const rk_object* objects, __global const rk_node* nodes, \
+    __global const uint* prim_ids, __global const rk_triangle* tris, __global const float* pos
+#define RK_SCENE_MAKE(sc) const rk_scene sc = {top, top_ids, instances, objects, nodes, prim_ids, tris, pos, \
+    top_count, 0, {0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u}}
 
 __kernel void rk_mesh_closest(__global const rk_node* nodes, __global const uint* prim_ids,
                               __global const rk_triangle* tris, __global const float* pos, const uint node_count,
@@ -135,9 +260,9 @@ __kernel void rk_mesh_closest(__global const rk_node* nodes, __global const uint
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
     const rk_ray r = rays[i];
-    rk_object ob = {0u, node_count, 0u, 0u, 0u, 0u, 0u, 0u};
+    const rk_scene sc = rk_mesh_scene(nodes, prim_ids, tris, pos, node_count);
     rk_hit h = rk_miss();
-    if (rk_trace_tree(nodes, prim_ids, tris, pos, &ob, &r, r.tmax, 0, &h) && h.prim != RK_INVALID) h.inst = 0u;
+    rk_walk(&sc, &r, 0, &h, 0, 0);
     hits[i] = h;
 }
 
@@ -147,94 +272,28 @@ __kernel void rk_mesh_any(__global const rk_node* nodes, __global const uint* pr
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
     const rk_ray r = rays[i];
-    rk_object ob = {0u, node_count, 0u, 0u, 0u, 0u, 0u, 0u};
+    const rk_scene sc = rk_mesh_scene(nodes, prim_ids, tris, pos, node_count);
     rk_hit h = rk_miss();
-    occluded[i] = rk_trace_tree(nodes, prim_ids, tris, pos, &ob, &r, r.tmax, 1, &h) ? 1u : 0u;
+    occluded[i] = rk_walk(&sc, &r, 1, &h, 0, 0) ? 1u : 0u;
 }
 
-/* Scene::object_ray: world ray into the instance's object space. */
-RK_INLINE rk_ray rk_object_ray(__global const rk_instance* in, const rk_ray* r, float tmax) {
-    rk_ray o;
-    for (int k = 0; k < 3; ++k) {
-        __global const float* m = in->world_to_object + 4 * k;
-        o.org[k] = fma(m[0], r->org[0], fma(m[1], r->org[1], fma(m[2], r->org[2], m[3])));
-        o.dir[k] = fma(m[0], r->dir[0], fma(m[1], r->dir[1], m[2] * r->dir[2]));
-    }
-    o.tmin = r->tmin;
-    o.tmax = tmax;
-    return o;
-}
-
-/* Two-level trace (Scene::intersect_closest / intersect_any). */
-RK_INLINE bool rk_trace_scene(__global const rk_node* top, const uint top_count, __global const uint* top_ids,
-                    __global const rk_instance* instances, __global const rk_object* objects,
-                    __global const rk_node* nodes, __global const uint* prim_ids,
-                    __global const rk_triangle* tris, __global const float* pos,
-                    const rk_ray* r, const int any, rk_hit* best) {
-    if (top_count == 0) return false;
-    const rk_slab_ray s = rk_slab_prepare(r->org, r->dir, r->tmin);
-    float tmax = r->tmax;
-    float troot;
-    if (!rk_slab(&s, top, tmax, &troot)) return false;
-    uint st_node[RK_MAX_DEPTH];
-    float st_t[RK_MAX_DEPTH];
-    int sp = 0;
-    uint cur = 0;
-    bool found = false;
-    for (;;) {
-        __global const rk_node* n = top + cur;
-        const uint index = n->index, count = n->count;
-        if (count != 0) {
-            for (uint k = index; k < index + count; ++k) {
-                const uint inst = top_ids[k];
-                __global const rk_instance* in = instances + inst;
-                const rk_object ob = objects[in->object];
-                const rk_ray o = rk_object_ray(in, r, any ? r->tmax : tmax);
-                rk_hit h = rk_miss();
-                if (any) {
-                    if (rk_trace_tree(nodes, prim_ids, tris, pos, &ob, &o, o.tmax, 1, &h)) return true;
-                } else if (rk_trace_tree(nodes, prim_ids, tris, pos, &ob, &o, o.tmax, 0, &h) && h.prim != RK_INVALID) {
-                    h.inst = inst;
-                    if (rk_closer(&h, best)) {
-                        *best = h;
-                        tmax = h.t;
-                        found = true;
-                    }
-                }
-            }
-        } else {
-            const int step = rk_descend(&s, top, index, tmax, &cur, st_node, st_t, &sp);
-            if (step < 0) return found;
-            if (step > 0) continue;
-        }
-        if (!rk_pop(&cur, st_node, st_t, &sp, tmax)) return found;
-    }
-}
-
-__kernel void rk_scene_closest(__global const rk_node* top, const uint top_count, __global const uint* top_ids,
-                               __global const rk_instance* instances, __global const rk_object* objects,
-                               __global const rk_node* nodes, __global const uint* prim_ids,
-                               __global const rk_triangle* tris, __global const float* pos,
-                               __global const rk_ray* rays, __global rk_hit* hits, const uint n) {
+__kernel void rk_scene_closest(RK_SCENE_PARAMS, __global const rk_ray* rays, __global rk_hit* hits, const uint n) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
+    RK_SCENE_MAKE(sc);
     const rk_ray r = rays[i];
     rk_hit best = rk_miss();
-    rk_trace_scene(top, top_count, top_ids, instances, objects, nodes, prim_ids, tris, pos, &r, 0, &best);
+    rk_walk(&sc, &r, 0, &best, 0, 0);
     hits[i] = best;
 }
 
-__kernel void rk_scene_any(__global const rk_node* top, const uint top_count, __global const uint* top_ids,
-                           __global const rk_instance* instances, __global const rk_object* objects,
-                           __global const rk_node* nodes, __global const uint* prim_ids,
-                           __global const rk_triangle* tris, __global const float* pos,
-                           __global const rk_ray* rays, __global uint* occluded, const uint n) {
+__kernel void rk_scene_any(RK_SCENE_PARAMS, __global const rk_ray* rays, __global uint* occluded, const uint n) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
+    RK_SCENE_MAKE(sc);
     const rk_ray r = rays[i];
     rk_hit best = rk_miss();
-    occluded[i] = rk_trace_scene(top, top_count, top_ids, instances, objects, nodes, prim_ids, tris, pos, &r, 1, &best)
-                      ? 1u : 0u;
+    occluded[i] = rk_walk(&sc, &r, 1, &best, 0, 0) ? 1u : 0u;
 }
 )CLC";
 

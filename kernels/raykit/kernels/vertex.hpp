@@ -6,9 +6,10 @@
 // objects' vertex ranges are concatenated: range r covers work items
 // [begin[r], begin[r+1]). Each vertex is computed from the untouched rest
 // copy, never from the previous frame:
-//   moved[rest_offset[r] + i] = @NAME@(rest[rest_offset[r] + i], i, params[r])
-// and its position also goes to the scene's position array (read by trace
-// and refit) at vertex pos_offset[r] + i.
+//   moved[pos_offset[r] + i] = @NAME@(rest[rest_offset[r] + i], i, params[r])
+// (the scene's vertex records, read by the renderer) and its position also
+// goes to the scene's position array (read by trace and refit) at the same
+// vertex.
 // @BUFFER_PARAMS@ / @BUFFER_ARGS@ become the hook's global buffers (see
 // H::buffers in include/raykit/cl/hook.hpp): extra kernel parameters
 // ", __global const T0* rk_hook_buf0, ..." passed on to the hook function;
@@ -32,7 +33,7 @@ __kernel void rk_vertex_stage_@NAME@(__global const rk_vertex* rest, __global rk
     const uint k = i - begin[lo]; /* vertex index within its object */
     const @NAME@_params p = params[lo];
     const rk_vertex w = @NAME@(rest[rest_offset[lo] + k], k, p@BUFFER_ARGS@);
-    moved[rest_offset[lo] + k] = w;
+    moved[pos_offset[lo] + k] = w;
     vstore3((float3)(w.position[0], w.position[1], w.position[2]), pos_offset[lo] + k, pos);
 }
 )CLC";
