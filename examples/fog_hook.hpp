@@ -46,18 +46,8 @@ void fog(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surfa
     for (uint i = 0; i < rk_light_count(ctx); ++i) {
         const rk_light l = rk_get_light(ctx, i);
         float3 ldir;
-        float tmax = INFINITY;
-        if (l.type == 0u) {
-            const float3 to = rk_f3(l.position) - org;
-            const float d = length(to);
-            if (!(d > 0.0f)) continue;
-            ldir = to / d;
-            tmax = d * (1.0f - 1e-4f);
-        } else {
-            const float ll = length(rk_f3(l.direction));
-            if (!(ll > 0.0f)) continue;
-            ldir = -rk_f3(l.direction) / ll;
-        }
+        float tmax;
+        if (!rk_light_ray(l, org, &ldir, &tmax)) continue;
         const float nl = dot(s->ns, ldir);
         if (!(nl > 0.0f) || !(dot(s->ng, ldir) > 0.0f)) continue;
         const float3 c = w * (keep * nl) * s->base * rk_f3(l.color);

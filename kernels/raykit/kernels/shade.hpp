@@ -1,6 +1,7 @@
 // raykit/kernels/shade.hpp — the wavefront renderer's device side: path and
-// shadow queues, the surface at a hit, the ray-hook API and the built-in
-// shaders (normals, depth, whitted, ao, debug-cost). Host side:
+// shadow queues, the surface at a hit and the ray-hook API. The built-in
+// shaders (normals, depth, whitted, ao, debug-cost) are hooks on this API, one
+// header each in kernels/raykit/kernels/shaders/. Host side:
 // include/raykit/cl/render.hpp. Two parts: kShadeData (the crossing structs,
 // per-object material lookup and, with RK_LEAF_FILTER, the alpha cut-out
 // filter the walk calls) goes before kernels/raykit/kernels/trace.hpp,
@@ -59,6 +60,8 @@
 //   float4 rk_texture_sample(const rk_ctx* ctx, int texture, float2 uv)   linear RGBA,
 //                                                  the settings' filter, wrap addressing
 //   float3 rk_offset_origin(float3 p, float3 n)    raykit::offset_ray_origin
+//   bool  rk_light_ray(rk_light l, float3 org, float3* dir, float* tmax)
+//                                                  raykit::light_ray: the shadow ray toward l
 //   uint  rk_light_count(const rk_ctx*), rk_light rk_get_light(const rk_ctx*, uint i)
 //   ctx->set                                       the frame's rk_render_settings
 // The hook's signature:
@@ -446,6 +449,25 @@ RK_INLINE uint rk_light_count(const rk_ctx* ctx) { return ctx->set.light_count; 
 RK_INLINE rk_light rk_get_light(const rk_ctx* ctx, uint i) { return ctx->lights[i]; }
 
 /* raykit::offset_ray_origin (Wächter & Binder). */
+/* The shadow ray toward light l from org (raykit::light_ray): unit direction, tmax =
+   distance * (1 - 1e-4) for a point light, INFINITY for a directional one; false for a
+   degenerate light. */
+RK_INLINE bool rk_light_ray(rk_light l, float3 org, float3* dir, float* tmax) {
+    if (l.type == 0u) {
+        const float3 to = rk_f3(l.position) - org;
+        const float dist = length(to);
+        if (!(dist > 0.0f)) return false;
+        *dir = to / dist;
+        *tmax = dist * (1.0f - 1e-4f);
+        return true;
+    }
+    const float ll = length(rk_f3(l.direction));
+    if (!(ll > 0.0f)) return false;
+    *dir = -rk_f3(l.direction) / ll;
+    *tmax = INFINITY;
+    return true;
+}
+
 RK_INLINE float3 rk_offset_origin(float3 p, float3 n) {
     const float pa[3] = {p.x, p.y, p.z}, na[3] = {n.x, n.y, n.z};
     float out[3];
@@ -688,191 +710,6 @@ __kernel void rk_dr_shade_@NAME@(__global const rk_path_ray* queue, __global con
         s = rk_surface_at(&ctx, instances, objects, shade_objects, tris, pos, vertices, material_ids, &hit,
                           normalize(rk_f3(path.ray.dir)));
     @NAME@(&ctx, &path, &hit, &s, params);
-}
-)CLC";
-
-/// Built-in hooks (their C++ types are in include/raykit/cl/render.hpp).
-inline constexpr const char* kShadeNormals = R"CLC(typedef struct {
-    float pad;
-} rk_normals_params;
-
-void rk_normals(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surface* s, rk_normals_params p) {
-    if (hit->prim == RK_INVALID) {
-        rk_add_color(ctx, rk_f3(ctx->set.background));
-        return;
-    }
-    rk_set_alpha(ctx, 1.0f);
-    rk_add_color(ctx, s->ns * 0.5f + (float3)(0.5f));
-}
-)CLC";
-
-inline constexpr const char* kShadeDepth = R"CLC(typedef struct {
-    float pad;
-} rk_depth_params;
-
-void rk_depth(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surface* s, rk_depth_params p) {
-    if (hit->prim == RK_INVALID) {
-        rk_add_color(ctx, rk_f3(ctx->set.background));
-        return;
-    }
-    rk_set_alpha(ctx, 1.0f);
-    const float far = ctx->set.depth_far;
-    const float dist = hit->t * length(rk_f3(path->ray.dir));
-    rk_add_color(ctx, (float3)(far > 0.0f ? clamp(1.0f - dist / far, 0.0f, 1.0f) : 0.0f));
-}
-)CLC";
-
-inline constexpr const char* kShadeWhitted = R"CLC(typedef struct {
-    float pad;
-} rk_whitted_params;
-
-/* Exact dielectric Fresnel reflectance (raykit::detail::fresnel_dielectric). */
-RK_INLINE float rk_fresnel(float cos_i, float eta, float* cos_t) {
-    cos_i = clamp(cos_i, 0.0f, 1.0f);
-    const float sin2_t = eta * eta * fmax(0.0f, 1.0f - cos_i * cos_i);
-    if (sin2_t >= 1.0f) {
-        *cos_t = 0.0f;
-        return 1.0f;
-    }
-    *cos_t = sqrt(1.0f - sin2_t);
-    const float rs = (eta * cos_i - *cos_t) / (eta * cos_i + *cos_t);
-    const float rp = (cos_i - eta * *cos_t) / (cos_i + eta * *cos_t);
-    return 0.5f * (rs * rs + rp * rp);
-}
-
-/* Whitted shading, the twin of the CPU's ShaderKind::whitted (render/shade.hpp). */
-void rk_whitted(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surface* s, rk_whitted_params p) {
-    const float3 w = rk_f3(path->weight);
-    if (hit->prim == RK_INVALID) {
-        rk_add_color(ctx, w * rk_f3(ctx->set.background));
-        return;
-    }
-    rk_set_alpha(ctx, 1.0f);
-    const rk_material m = rk_get_material(ctx, s->material);
-    const float opaque = 1.0f - m.transparency;
-    const float3 ks = rk_f3(m.ks), d = s->d;
-    rk_add_color(ctx, w * (rk_f3(m.ke) + opaque * (rk_f3(ctx->set.ambient) * s->base)));
-    const uint nl_count = rk_light_count(ctx);
-    if (nl_count > 0u) {
-        const float3 org = rk_offset_origin(s->p, s->ng);
-        const bool want_spec = rk_max3(ks) > 0.0f;
-        for (uint li = 0; li < nl_count; ++li) {
-            const rk_light l = rk_get_light(ctx, li);
-            float3 ldir;
-            float tmax = INFINITY;
-            if (l.type == 0u) {
-                const float3 to = rk_f3(l.position) - org;
-                const float dist = length(to);
-                if (!(dist > 0.0f)) continue;
-                ldir = to / dist;
-                tmax = dist * (1.0f - 1e-4f);
-            } else {
-                const float ll = length(rk_f3(l.direction));
-                if (!(ll > 0.0f)) continue;
-                ldir = -rk_f3(l.direction) / ll;
-            }
-            const float nl = dot(s->ns, ldir);
-            if (!(nl > 0.0f) || !(dot(s->ng, ldir) > 0.0f)) continue;
-            const float3 lc = rk_f3(l.color);
-            float3 c = opaque * (s->base * (nl * lc));
-            if (want_spec) {
-                const float3 hv = normalize(ldir - d);
-                const float nh = fmax(0.0f, dot(s->ns, hv));
-                c += ks * (pow(nh, m.ns) * lc);
-            }
-            c *= w;
-            if (ctx->set.shadows) rk_emit_shadow(ctx, org, ldir, tmax, c);
-            else rk_add_color(ctx, c);
-        }
-    }
-    if (path->depth >= ctx->set.max_depth) return;
-    const float cos_i = fmax(0.0f, -dot(d, s->ns));
-    float3 refl = rk_f3(m.mirror);
-    if (m.fresnel_mirror && rk_max3(refl) > 0.0f) {
-        const float mm = clamp(1.0f - cos_i, 0.0f, 1.0f);
-        const float m5 = mm * mm * mm * mm * mm;
-        refl = refl + ((float3)(1.0f) - refl) * m5;
-    }
-    float trans = 0.0f;
-    float3 tdir = (float3)(0.0f);
-    if (m.transparency > 0.0f) {
-        const float eta = s->entering ? 1.0f / m.ni : m.ni;
-        float cos_t = 0.0f;
-        const float F = rk_fresnel(cos_i, eta, &cos_t);
-        refl += (float3)(m.transparency * F);
-        if (F < 1.0f) {
-            trans = m.transparency * (1.0f - F);
-            tdir = d * eta + s->ns * (eta * cos_i - cos_t);
-            if (!(dot(tdir, s->ng) < 0.0f)) {
-                const float ci = fmax(0.0f, -dot(d, s->ng));
-                const float s2 = eta * eta * fmax(0.0f, 1.0f - ci * ci);
-                if (s2 < 1.0f) tdir = d * eta + s->ng * (eta * ci - sqrt(1.0f - s2));
-                else trans = 0.0f;
-            }
-        }
-    }
-    const float3 wt = w * trans;
-    if (trans > 0.0f && rk_max3(wt) > ctx->set.min_weight)
-        rk_emit_ray(ctx, rk_offset_origin(s->p, -s->ng), normalize(tdir), wt, 2u);
-    const float3 wr = w * refl;
-    if (rk_max3(wr) > ctx->set.min_weight) {
-        float3 rdir = d - s->ns * (2.0f * dot(d, s->ns));
-        if (!(dot(rdir, s->ng) > 0.0f)) rdir = d - s->ng * (2.0f * dot(d, s->ng));
-        rk_emit_ray(ctx, rk_offset_origin(s->p, s->ng), rdir, wr, 1u);
-    }
-}
-)CLC";
-
-inline constexpr const char* kShadeAo = R"CLC(typedef struct {
-    float pad;
-} rk_ao_params;
-
-/* raykit::detail::basis: an orthonormal basis (t, b) around unit n (Duff et al. 2017). */
-RK_INLINE void rk_basis(float3 n, float3* t, float3* b) {
-    const float sign = copysign(1.0f, n.z);
-    const float a = -1.0f / (sign + n.z);
-    const float bb = n.x * n.y * a;
-    *t = (float3)(1.0f + sign * n.x * n.x * a, sign * bb, -sign * n.x);
-    *b = (float3)(bb, sign + n.y * n.y * a, -n.y);
-}
-
-/* Ambient occlusion, the twin of the CPU's ShaderKind::ao (render/shade.hpp): ao_samples
-   cosine-weighted any-hit rays within ao_radius from the first hit, drawn from the sample's
-   generator in the CPU's order; each unblocked one adds 1 / ao_samples. */
-void rk_ao(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surface* s, rk_ao_params p) {
-    if (hit->prim == RK_INVALID) {
-        rk_add_color(ctx, rk_f3(ctx->set.background));
-        return;
-    }
-    rk_set_alpha(ctx, 1.0f);
-    const uint n = ctx->set.ao_samples;
-    if (n == 0u) {
-        rk_add_color(ctx, (float3)(1.0f));
-        return;
-    }
-    const float3 org = rk_offset_origin(s->p, s->ng);
-    float3 tb, bb;
-    rk_basis(s->ns, &tb, &bb);
-    const float w = 1.0f / (float)n;
-    for (uint i = 0; i < n; ++i) {
-        const float u1 = rk_random(ctx), u2 = rk_random(ctx);
-        const float r = sqrt(u1), phi = 6.28318530717958647692f * u2;
-        const float3 dir = tb * (r * cos(phi)) + bb * (r * sin(phi)) + s->ns * sqrt(1.0f - u1);
-        if (!(dot(dir, s->ng) > 0.0f)) continue;
-        rk_emit_shadow(ctx, org, dir, ctx->set.ao_radius, (float3)(w));
-    }
-}
-)CLC";
-
-/// ShaderKind::debug_cost: the camera ray's traversal steps; the host maps them to colours.
-inline constexpr const char* kShadeDebugCost = R"CLC(typedef struct {
-    float pad;
-} rk_debug_cost_params;
-
-void rk_debug_cost(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surface* s,
-                   rk_debug_cost_params p) {
-    rk_set_alpha(ctx, hit->prim == RK_INVALID ? 0.0f : 1.0f);
-    rk_add_color(ctx, (float3)((float)rk_traversal_steps(ctx)));
 }
 )CLC";
 
