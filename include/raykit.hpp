@@ -7,7 +7,7 @@
 //   scene/           mesh, skeleton and skin data, building a BVH over a mesh, closest/any-hit queries
 //   io/              OBJ/MTL and SMD loading, ParseError
 //   anim/            skeletons, keyframe interpolation, skinning, the skinning vertex hook
-//   render/          materials, textures, images, shaders, the CPU renderer, the frame loop
+//   render/          materials, textures, images, shaders, ray hooks, the CPU renderer, the frame loop
 // The OpenCL device path is separate: include raykit/cl.hpp.
 #pragma once
 
@@ -54,5 +54,6 @@
 #include "raykit/render/texture.hpp"
 #include "raykit/render/material.hpp"
 #include "raykit/render/shade.hpp"
+#include "raykit/render/ray_hook.hpp"
 #include "raykit/render/render_cpu.hpp"
 #include "raykit/render/frame.hpp"
