@@ -303,8 +303,7 @@ Image render_hook_cpu(const ShadeScene& scene, const Camera& cam, const RenderSe
 /// of 4, leaves up to 12), which the CPU walks as 8-wide nodes over 4-triangle blocks.
 inline BuildOptions render_build_options(unsigned threads = 0) {
     BuildOptions b;
-    b.leaf.leaf_block = 4;
-    b.leaf.max_leaf_size = 12;
+    b.leaf = BlockBvh8::sah_config().leaf;
     b.threads = threads;
     return b;
 }
@@ -334,7 +333,7 @@ struct RenderScene {
     }
     /// The shaders' view (the top-level tree must be fresh: Scene::update_top_level()).
     ShadeScene view() const { return make_shade_scene(scene, materials, lights); }
-    /// scene_bounds(scene): for one object, the bounds of its finite vertices.
+    /// scene_bounds(scene): for one object at the identity, the bounds of its triangles.
     AABB bounds() const { return scene_bounds(scene); }
 };
 

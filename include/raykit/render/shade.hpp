@@ -214,18 +214,14 @@ struct ShadeCounters {
     }
 };
 
-/// World box of a scene: its identity instances' finite vertices, and the world boxes
-/// (Scene::world_box) of the others.
+/// World box of a scene: its identity instances' tree root boxes (the triangles' finite
+/// bounds) and the world boxes (Scene::world_box) of the others — the device renderer's rule
+/// too (cl/render.hpp), and O(instances): static geometry is not read again each frame.
 inline AABB scene_bounds(const Scene& scene) {
     AABB b;
     for (std::uint32_t i = 0; i < scene.instances().size(); ++i) {
         const SceneInstance& in = scene.instances()[i];
-        if (!in.identity) {
-            b.grow(scene.world_box(i));
-            continue;
-        }
-        for (const vec3& p : scene.objects()[in.object].mesh.positions)
-            if (is_finite(p)) b.grow(p);
+        b.grow(in.identity ? scene.objects()[in.object].bounds() : scene.world_box(i));
     }
     return b;
 }

@@ -100,13 +100,16 @@ struct BlockBvhT {
         for (const TriangleBlock4& b : blocks)
             for (int i = 0; i < 4; ++i)
                 if (b.prim[i] >= mesh.size()) throw std::invalid_argument("BlockBvh::refit: a block names a triangle outside the mesh");
-        if (blocks.size() < 4096) threads = 1;  // starting threads costs more than ~16k triangles take
-        parallel_for(blocks.size(), threads, [&](std::size_t k) {
-            for (int i = 0; i < 4; ++i) {
-                const std::uint32_t p = bl[k].prim[i];
-                bl[k].set(i, mesh.vertex(p, 0), mesh.vertex(p, 1), mesh.vertex(p, 2), p);
-            }
-        });
+        // below ~16k triangles starting threads costs more than the pass takes
+        parallel_for(
+            blocks.size(), threads,
+            [&](std::size_t k) {
+                for (int i = 0; i < 4; ++i) {
+                    const std::uint32_t p = bl[k].prim[i];
+                    bl[k].set(i, mesh.vertex(p, 0), mesh.vertex(p, 1), mesh.vertex(p, 2), p);
+                }
+            },
+            4096);
         const auto leaf_box = [&](std::uint32_t first, std::uint32_t count) {
             AABB b;  // lanes past a leaf's size repeat its last triangle: the union is the leaf's
             for (std::uint32_t k = first; k < first + count; ++k)
