@@ -123,14 +123,13 @@
 #include "raykit/render/image.hpp"
 #include "raykit/render/render_cpu.hpp"
 #include "raykit/render/shade.hpp"
+#include "raykit/render/shaders.hpp"
 #include "raykit/scene/camera.hpp"
 
 namespace raykit::cl {
 
-/// max_shadow_rays value meaning "one per light of the scene".
-inline constexpr unsigned kPerLight = 0xFFFFFFFFu;
-/// max_shadow_rays value meaning "ShadeSettings::ao_samples".
-inline constexpr unsigned kPerAoSample = 0xFFFFFFFEu;
+using raykit::kPerAoSample;  // max_shadow_rays values (render/ray_hook.hpp)
+using raykit::kPerLight;
 
 template <class H>
 concept RayHook = requires {
@@ -139,13 +138,6 @@ concept RayHook = requires {
     { H::max_rays } -> std::convertible_to<unsigned>;
     { H::max_shadow_rays } -> std::convertible_to<unsigned>;
 } && std::is_trivially_copyable_v<typename H::Params>;
-
-/// True when hook H declares `traversal_steps = true` (it reads rk_traversal_steps).
-template <class H>
-constexpr bool hook_wants_traversal_steps() noexcept {
-    if constexpr (requires { H::traversal_steps; }) return bool(H::traversal_steps);
-    else return false;
-}
 
 // ---------------------------------------------------------------- crossing structs (kernels/raykit/kernels/shade.hpp)
 // Sizes and offsets are pinned here and, with the same numbers, by RK_DR_CHECK in the kernels.
@@ -226,62 +218,37 @@ inline constexpr std::uint32_t kShadeUvs = 2u;
 
 // ---------------------------------------------------------------- built-in hooks
 
+// Each built-in device hook is its CPU twin (render/shaders.hpp: Params, budgets, shade) plus
+// its OpenCL source and name, so one type renders on both sides.
+
 /// 0.5 · N + 0.5 at the first hit (ShaderKind::normals).
-struct NormalsRayHook {
+struct NormalsRayHook : NormalsShader {
     static constexpr const char* name = "rk_normals";
-    struct Params {
-        float pad = 0.0f;
-    };
-    static constexpr unsigned max_rays = 0;
-    static constexpr unsigned max_shadow_rays = 0;
     static constexpr const char* source = kernels::kShadeNormals;
 };
 /// 1 - distance / far at the first hit (ShaderKind::depth).
-struct DepthRayHook {
+struct DepthRayHook : DepthShader {
     static constexpr const char* name = "rk_depth";
-    struct Params {
-        float pad = 0.0f;
-    };
-    static constexpr unsigned max_rays = 0;
-    static constexpr unsigned max_shadow_rays = 0;
     static constexpr const char* source = kernels::kShadeDepth;
 };
-/// Whitted ray tracing (ShaderKind::whitted): Blinn-Phong, ambient, shadow rays, mirror
-/// reflection, refraction, emission.
-struct WhittedRayHook {
+/// Whitted ray tracing (ShaderKind::whitted).
+struct WhittedRayHook : WhittedShader {
     static constexpr const char* name = "rk_whitted";
-    struct Params {
-        float pad = 0.0f;
-    };
-    static constexpr unsigned max_rays = 2;
-    static constexpr unsigned max_shadow_rays = kPerLight;
     static constexpr const char* source = kernels::kShadeWhitted;
 };
-/// Ambient occlusion (ShaderKind::ao): ShadeSettings::ao_samples cosine-weighted any-hit rays
-/// per camera ray, from the sample's random numbers as on the CPU.
-struct AoRayHook {
+/// Ambient occlusion (ShaderKind::ao).
+struct AoRayHook : AoShader {
     static constexpr const char* name = "rk_ao";
-    struct Params {
-        float pad = 0.0f;
-    };
-    static constexpr unsigned max_rays = 0;
-    static constexpr unsigned max_shadow_rays = kPerAoSample;
     static constexpr const char* source = kernels::kShadeAo;
 };
 /// Traversal steps of the camera ray (ShaderKind::debug_cost), before the heat map.
-struct DebugCostRayHook {
+struct DebugCostRayHook : DebugCostShader {
     static constexpr const char* name = "rk_debug_cost";
-    struct Params {
-        float pad = 0.0f;
-    };
-    static constexpr unsigned max_rays = 0;
-    static constexpr unsigned max_shadow_rays = 0;
-    static constexpr bool traversal_steps = true;
     static constexpr const char* source = kernels::kShadeDebugCost;
 };
 static_assert(RayHook<NormalsRayHook> && RayHook<DepthRayHook> && RayHook<WhittedRayHook> && RayHook<AoRayHook> &&
               RayHook<DebugCostRayHook>);
-static_assert(hook_wants_traversal_steps<DebugCostRayHook>() && !hook_wants_traversal_steps<WhittedRayHook>());
+static_assert(hook_counts_steps<DebugCostRayHook>() && !hook_counts_steps<WhittedRayHook>());
 
 /// What a device frame did. Bounce slots as in render/shade.hpp (kBounceSlots: 0, 1, 2, 3+).
 struct DeviceRenderStats {
@@ -320,7 +287,7 @@ Program ray_hook_program(Device& dev, bool cut_outs = false) {
     const std::string name = H::name;
     detail::check_ray_hook_name(name);
     std::vector<SourcePart> parts = base_parts();
-    if constexpr (hook_wants_traversal_steps<H>())
+    if constexpr (hook_counts_steps<H>())
         parts.push_back({"<hook " + name + " options>", "#define RK_DR_STEPS 1\n"});
     if (cut_outs) parts.push_back({"<alpha cut-outs>", "#define RK_LEAF_FILTER 1\n"});
     parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
@@ -443,7 +410,7 @@ public:
         const std::uint32_t max_shadows = H::max_shadow_rays == kPerLight      ? light_count_
                                           : H::max_shadow_rays == kPerAoSample ? shade.ao_samples
                                                                                : H::max_shadow_rays;
-        constexpr bool want_steps = hook_wants_traversal_steps<H>();
+        constexpr bool want_steps = hook_counts_steps<H>();
         const PixelSampler sampler(set.spp, set.seed, set.jitter);
 
         DeviceRenderStats st;
@@ -700,16 +667,8 @@ private:
             r.background[c] = s.background[c];
         }
         r.min_weight = s.min_weight;
-        float far = s.depth_far;
-        if (!(far > 0.0f)) {  // as the CPU's depth shader: farthest corner of the scene bounds
-            far = 0.0f;
-            for (int c = 0; c < 8; ++c) {
-                const vec3 corner((c & 1) ? box.max.x : box.min.x, (c & 2) ? box.max.y : box.min.y,
-                                  (c & 4) ? box.max.z : box.min.z);
-                far = std::max(far, glm::length(corner - frame.origin));
-            }
-        }
-        r.depth_far = far;
+        const ShadeSettings rs = resolve_shade_settings(s, box, frame.origin);  // the CPU's rule
+        r.depth_far = rs.depth_far;
         r.width = frame.width;
         r.height = frame.height;
         r.max_depth = s.max_depth;
@@ -720,10 +679,7 @@ private:
         r.material_count = material_count_;
         r.alpha_testing = alpha_testing_ ? 1u : 0u;
         r.ao_samples = s.ao_samples;
-        float radius = s.ao_radius;  // as the CPU's ao shader
-        if (!(radius > 0.0f)) radius = 0.1f * glm::length(box.extent());
-        if (!(radius > 0.0f)) radius = kInf;
-        r.ao_radius = radius;
+        r.ao_radius = rs.ao_radius;
         return r;
     }
 

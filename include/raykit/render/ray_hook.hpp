@@ -12,8 +12,10 @@
 //   Image cpu = render_hook_cpu<FogHook>(rs.view(), cam, set, {0.05f, 0.6f, 0.7f, 0.8f});
 //   Image dev = device_renderer.render_hook<FogHook>(cam, set, params);                         // cl/render.hpp
 //
-// The CPU driver follows the device's rules one sample at a time: the camera ray (placed as
-// PixelSampler places it) is traced, the hook shades it (hit or miss: hit.prim ==
+// The CPU driver (shade_hook, the only per-sample shading loop of the CPU: the built-in shaders
+// of render/shaders.hpp are hooks too) follows the device's rules one sample at a time: the
+// camera ray (placed as PixelSampler places it) is traced by the renderer, a chunk of camera
+// rays at a time (trace_camera_ray), the hook shades it (hit or miss: hit.prim ==
 // kInvalidIndex on a miss, and `s` is then all zero with no material); what it emits is traced
 // too — shadow rays (any hit on [0, tmax]; their colour is added when nothing blocks them) at
 // once, continuation rays (closest hit, depth + 1) depth first — until nothing is left. A
@@ -33,6 +35,7 @@
 //   offset_ray_origin(p, n) (math/offset.hpp)               rk_offset_origin
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <type_traits>
@@ -57,6 +60,15 @@ struct PathRay {
     std::uint32_t kind = 0;  ///< what the emitter said (0 = camera ray)
 };
 
+/// A camera ray with its closest hit, traced by the renderer before shading (so camera rays
+/// can be traced as batches) — what shade_hook starts a sample from.
+struct CameraSample {
+    Ray ray;
+    Hit hit;                 ///< closest hit of `ray` (alpha cut-outs skipped)
+    unsigned steps = 0;      ///< inner nodes + leaves its traversal visited (hooks with traversal_steps)
+    std::uint32_t pixel = 0; ///< y · width + x
+};
+
 /// A ray hook with a CPU twin: H::shade(ctx, path, hit, surface, params).
 template <class H>
 concept CpuRayHook = std::is_trivially_copyable_v<typename H::Params> &&
@@ -66,6 +78,49 @@ concept CpuRayHook = std::is_trivially_copyable_v<typename H::Params> &&
                          { H::max_shadow_rays } -> std::convertible_to<unsigned>;
                          H::shade(ctx, path, hit, s, p);
                      };
+
+/// True when hook H reads traversal_steps() (H::traversal_steps is true).
+template <class H>
+constexpr bool hook_counts_steps() noexcept {
+    if constexpr (requires { H::traversal_steps; }) return bool(H::traversal_steps);
+    else return false;
+}
+
+namespace detail {
+
+/// One shading query of the hooks' driver over the scene's trees, alpha cut-outs filtered
+/// when kAlpha, timed into `ticks` and `bounce_ticks` when `timed` (ShadeCounters::time_stages).
+template <SceneTrees kTrees, bool kAlpha>
+struct HookTracer {
+    static Hit closest(const ShadeScene& s, TextureFilter f, const Ray& r, TraversalStats* st) {
+        const Tracer<kTrees, kAlpha> tr{s, f};
+        return st ? tr.closest(r, st) : tr.closest(r);
+    }
+    static bool any(const ShadeScene& s, TextureFilter f, const Ray& r) { return Tracer<kTrees, kAlpha>{s, f}.any(r); }
+};
+
+/// The closest-hit and any-hit queries of `s` (its trees, its alpha testing), chosen once.
+struct SceneQueries {
+    Hit (*closest)(const ShadeScene&, TextureFilter, const Ray&, TraversalStats*) = nullptr;
+    bool (*any)(const ShadeScene&, TextureFilter, const Ray&) = nullptr;
+
+    explicit SceneQueries(const ShadeScene& s) noexcept {
+        const bool blocks = s.trees == SceneTrees::blocks;
+        if (blocks && s.alpha_testing) set<SceneTrees::blocks, true>();
+        else if (blocks) set<SceneTrees::blocks, false>();
+        else if (s.alpha_testing) set<SceneTrees::binary, true>();
+        else set<SceneTrees::binary, false>();
+    }
+
+private:
+    template <SceneTrees kTrees, bool kAlpha>
+    void set() noexcept {
+        closest = &HookTracer<kTrees, kAlpha>::closest;
+        any = &HookTracer<kTrees, kAlpha>::any;
+    }
+};
+
+}  // namespace detail
 
 /// What a CPU hook may call while it shades one ray (see the header comment).
 class RayHookContext {
@@ -77,17 +132,19 @@ public:
     float random() noexcept { return rng_.next_float(); }
     unsigned traversal_steps() const noexcept { return steps_; }
     std::span<const Light> lights() const noexcept { return scene_->lights; }
+    /// The frame's settings, depth_far and ao_radius resolved (resolve_shade_settings).
     const ShadeSettings& settings() const noexcept { return *set_; }
     /// Any hit of (org, dir) on [0, tmax]: adds c when nothing blocks it. False past the budget.
     bool emit_shadow(const vec3& org, const vec3& dir, float tmax, const vec3& c) {
         if (shadows_left_ == 0) return false;
         --shadows_left_;
         ++counters_->rays.shadow;
-        ++counters_->bounce_rays[bounce_slot(path_->depth)];
+        const unsigned slot = bounce_slot(path_->depth);
+        ++counters_->bounce_rays[slot];
         const Ray r{org, 0.0f, dir, tmax};
-        const bool blocked = scene_->alpha_testing
-                                 ? detail::Tracer<SceneTrees::blocks, true>{*scene_, set_->filter}.any(r)
-                                 : detail::Tracer<SceneTrees::blocks, false>{*scene_, set_->filter}.any(r);
+        const bool blocked = detail::timed(counters_->time_stages, counters_->times.shadow_ticks,
+                                           counters_->times.bounce_ticks[slot],
+                                           [&] { return queries_->any(*scene_, set_->filter, r); });
         if (!blocked) color_ += c;
         return true;
     }
@@ -109,10 +166,11 @@ public:
 
 private:
     template <class H>
-    friend SampleResult shade_hook(const ShadeScene&, const ShadeSettings&, const Ray&, SampleRng&, std::uint32_t,
+    friend SampleResult shade_hook(const ShadeScene&, const ShadeSettings&, const CameraSample&, SampleRng&,
                                    const typename H::Params&, ShadeCounters&, std::vector<Pending>&);
     const ShadeScene* scene_ = nullptr;
     const ShadeSettings* set_ = nullptr;
+    const detail::SceneQueries* queries_ = nullptr;
     const PathRay* path_ = nullptr;
     ShadeCounters* counters_ = nullptr;
     std::vector<Pending>* pending_ = nullptr;
@@ -122,62 +180,82 @@ private:
     unsigned steps_ = 0, rays_left_ = 0, shadows_left_ = 0;
 };
 
-/// Shades one camera ray with hook H (see the header comment): the CPU twin of one sample of
-/// the device's render_hook<H>. `rng` is the sample's generator after the camera's jitter;
-/// `pending` is reusable scratch (one per thread).
+/// Reusable work space of the hooks' driver (one per thread): the pending rays of a sample.
+using PathScratch = std::vector<RayHookContext::Pending>;
+
+/// Shades one sample with hook H from its traced camera ray (see the header comment): the CPU
+/// twin of one sample of the device's render_hook<H>. `set` as resolve_shade_settings gives
+/// it; `rng` is the sample's generator after the camera's jitter; `pending` is reusable
+/// scratch (one per thread). Counts the continuation and shadow rays it traces (the camera
+/// ray is counted by whoever traced it).
 template <class H>
-SampleResult shade_hook(const ShadeScene& scene, const ShadeSettings& set, const Ray& camera_ray, SampleRng& rng,
-                        std::uint32_t pixel, const typename H::Params& params, ShadeCounters& cnt,
-                        std::vector<RayHookContext::Pending>& pending) {
+SampleResult shade_hook(const ShadeScene& scene, const ShadeSettings& set, const CameraSample& camera, SampleRng& rng,
+                        const typename H::Params& params, ShadeCounters& cnt, PathScratch& pending) {
     static_assert(CpuRayHook<H>, "a CPU ray hook needs Params, max_rays, max_shadow_rays and a static shade()");
-    constexpr bool kSteps = requires { requires H::traversal_steps; };
+    const detail::SceneQueries queries(scene);
     pending.clear();
     RayHookContext ctx;
     ctx.scene_ = &scene;
     ctx.set_ = &set;
+    ctx.queries_ = &queries;
     ctx.counters_ = &cnt;
     ctx.pending_ = &pending;
-    const bool alpha = scene.alpha_testing;
-    pending.push_back({PathRay{camera_ray, vec3(1.0f), pixel, 0, 0}, rng.state});
-    ++cnt.rays.primary;
-    ++cnt.bounce_rays[0];
     const unsigned per_hit_shadows = H::max_shadow_rays == kPerLight      ? unsigned(scene.lights.size())
                                      : H::max_shadow_rays == kPerAoSample ? set.ao_samples
                                                                           : unsigned(H::max_shadow_rays);
+    // shades `path` at its hit `h` (steps: its traversal's), with the generator state `state`
+    const auto shade = [&](const PathRay& path, const Hit& h, unsigned steps, std::uint64_t state) {
+        SurfacePoint s;
+        if (h.valid()) s = surface_point(scene, h, glm::normalize(path.ray.dir), set.filter);
+        ctx.path_ = &path;
+        ctx.rng_.state = state;
+        ctx.steps_ = steps;
+        ctx.rays_left_ = H::max_rays;
+        ctx.shadows_left_ = per_hit_shadows;
+        H::shade(ctx, path, h, s, params);
+    };
+    const PathRay camera_path{camera.ray, vec3(1.0f), camera.pixel, 0, 0};
+    if constexpr (hook_counts_steps<H>()) cnt.traversal_steps += camera.steps;
+    shade(camera_path, camera.hit, camera.steps, rng.state);
+    rng = ctx.rng_;  // the sample's generator goes on from the camera ray's
     while (!pending.empty()) {
         const RayHookContext::Pending item = pending.back();
         pending.pop_back();
         const PathRay& path = item.path;
-        if (path.depth > 0) {
-            if (path.kind == 1) ++cnt.rays.reflection;
-            else ++cnt.rays.refraction;
-            ++cnt.bounce_rays[bounce_slot(path.depth)];
-        }
+        if (path.kind == 1) ++cnt.rays.reflection;
+        else ++cnt.rays.refraction;
+        const unsigned slot = bounce_slot(path.depth);
+        ++cnt.bounce_rays[slot];
         cnt.deepest = std::max(cnt.deepest, path.depth);
         TraversalStats st;
-        Hit h;
-        if (alpha) {
-            const detail::Tracer<SceneTrees::blocks, true> tr{scene, set.filter};
-            h = kSteps ? tr.closest(path.ray, &st) : tr.closest(path.ray);
-        } else {
-            const detail::Tracer<SceneTrees::blocks, false> tr{scene, set.filter};
-            h = kSteps ? tr.closest(path.ray, &st) : tr.closest(path.ray);
-        }
-        SurfacePoint s;
-        if (h.valid()) s = surface_point(scene, h, glm::normalize(path.ray.dir), set.filter);
-        ctx.path_ = &path;
-        ctx.rng_ = SampleRng(0);
-        ctx.rng_.state = item.rng;
-        ctx.steps_ = st.nodes + st.leaves;
-        ctx.rays_left_ = H::max_rays;
-        ctx.shadows_left_ = per_hit_shadows;
-        H::shade(ctx, path, h, s, params);
-        if (path.depth == 0) rng = ctx.rng_;  // the sample's generator goes on from the camera ray's
+        const Hit h = detail::timed(cnt.time_stages, cnt.times.trace_ticks, cnt.times.bounce_ticks[slot], [&] {
+            return queries.closest(scene, set.filter, path.ray, hook_counts_steps<H>() ? &st : nullptr);
+        });
+        shade(path, h, st.nodes + st.leaves, item.rng);
     }
     SampleResult res;
     res.color = ctx.color_;
     res.alpha = ctx.alpha_;
+    if constexpr (hook_counts_steps<H>()) res.cost = float(camera.steps);
     return res;
+}
+
+/// The camera sample of `ray` through pixel `pixel`: its closest hit in `scene` (with its
+/// traversal steps when `steps`), counted as a primary ray in `cnt` (and timed when
+/// cnt.time_stages). The renderers trace camera rays with this before shade_hook.
+inline CameraSample trace_camera_ray(const ShadeScene& scene, TextureFilter filter, const Ray& ray,
+                                     std::uint32_t pixel, bool steps, ShadeCounters& cnt) {
+    const detail::SceneQueries queries(scene);
+    CameraSample c;
+    c.ray = ray;
+    c.pixel = pixel;
+    TraversalStats st;
+    c.hit = detail::timed(cnt.time_stages, cnt.times.trace_ticks, cnt.times.bounce_ticks[0],
+                          [&] { return queries.closest(scene, filter, ray, steps ? &st : nullptr); });
+    c.steps = st.nodes + st.leaves;
+    ++cnt.rays.primary;
+    ++cnt.bounce_rays[0];
+    return c;
 }
 
 }  // namespace raykit

@@ -1,10 +1,10 @@
-// raykit/render/render_cpu.hpp — the CPU renderer: camera samples -> shade_ray -> image.
+// raykit/render/render_cpu.hpp — the CPU renderer: camera samples -> their camera rays traced a
+// chunk at a time -> a ray hook shades each (render/ray_hook.hpp shade_hook; the built-in shaders
+// of render/shaders.hpp or a user's) -> image.
 //
-// Interface
-// ---------
 //   RenderScene rs = prepare_render_scene(load_obj("scene.obj"));   // owns a Scene, materials, lights
-//   rs.lights.push_back(default_key_light(rs.bounds(), cam));
 //   Camera cam = frame_scene(rs.bounds(), 640, 480);                 // whole scene in view
+//   rs.lights.push_back(default_key_light(cam));
 //   RenderSettings set;  set.spp = 4;  set.shade.max_depth = 2;  set.threads = 2;
 //   RenderStats stats;
 //   Image img = render_cpu(rs.view(), cam, set, &stats);
@@ -26,8 +26,9 @@
 // ray counts do not depend on the number of threads.
 //
 // Parallelism: rows are dealt round-robin to `threads` workers (raykit::parallel_chunks; 0 =
-// all hardware threads). Each worker keeps one PathScratch (a growable stack of pending rays),
-// so memory does not grow with spp or depth beyond what one path needs.
+// all hardware threads). Each worker keeps one PathScratch (a growable stack of pending rays)
+// and one chunk of camera samples (kCameraChunk), so memory does not grow with spp or depth
+// beyond what one path needs.
 //
 // debug_cost: pixels hold the mean traversal steps; after rendering cost_heat_map maps them to
 // a heat-map colour (blue, cyan, green, yellow, red) with `cost_scale` steps (or the frame's
@@ -58,6 +59,7 @@
 #include "raykit/render/material.hpp"
 #include "raykit/render/ray_hook.hpp"
 #include "raykit/render/shade.hpp"
+#include "raykit/render/shaders.hpp"
 #include "raykit/scene/build_options.hpp"
 #include "raykit/scene/camera.hpp"
 #include "raykit/util/parallel.hpp"
@@ -178,10 +180,15 @@ private:
 
 namespace detail {
 
-/// render_cpu's body: `sample(ray, rng, pixel, counters, scratch)` shades one sample.
-template <class Scratch, class SampleFn>
-Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSettings& set, RenderStats* stats,
-                     SampleFn&& shade_sample) {
+/// Camera samples traced and shaded together: a row is cut into chunks of whole pixels of at
+/// most this many samples (or one pixel's samples when spp is larger), whose camera rays are
+/// traced first and then shaded in sample order.
+inline constexpr std::size_t kCameraChunk = 256;
+
+/// render_cpu's body with hook Hook (`heat_map`: map debug_cost steps to colours at the end).
+template <class Hook>
+Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSettings& set,
+                     const typename Hook::Params& params, RenderStats* stats, bool heat_map) {
     using Clock = std::chrono::steady_clock;
     auto ms_since = [](Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); };
     if (set.spp == 0) throw std::invalid_argument("raykit::render_cpu: spp must be at least 1");
@@ -194,6 +201,8 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
     Image img(W, H, vec4(0.0f));
     const unsigned spp = set.spp;
     const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(resolve_threads(set.threads), H));
+    const ShadeSettings shade_set = resolve_shade_settings(set.shade, scene.bounds, frame.origin);
+    const std::size_t chunk_pixels = std::max<std::size_t>(1, kCameraChunk / spp);
     std::vector<ShadeCounters> row_counters(H);
     std::vector<std::uint64_t> row_ticks(set.time_stages ? H : 0, 0);
     std::atomic<std::size_t> rows_done{0};
@@ -205,27 +214,40 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
     const std::uint64_t ticks_render = set.time_stages ? stage_ticks() : 0;
     const float inv_spp = 1.0f / float(spp);
     parallel_chunks(H, H, threads, [&](std::size_t, std::size_t y0, std::size_t y1) {
-        Scratch scratch;
+        PathScratch scratch;
         PixelSampler sampler(spp, set.seed, set.jitter);
+        std::vector<CameraSample> samples;
+        std::vector<SampleRng> rngs;
         for (std::size_t yy = y0; yy < y1; ++yy) {
             const auto y = static_cast<std::uint32_t>(yy);
             const std::uint64_t t_row = set.time_stages ? stage_ticks() : 0;
             ShadeCounters& cnt = row_counters[y];
             cnt.time_stages = set.time_stages;
-            for (std::uint32_t x = 0; x < W; ++x) {
-                sampler.begin_pixel(std::uint64_t(y) * W + x);
-                vec3 sum(0.0f);
-                float cover = 0.0f;
-                for (unsigned s = 0; s < spp; ++s) {
-                    SampleRng rng;
-                    const vec2 j = sampler.sample(s, rng);
-                    const Ray ray = frame.ray(x, y, j.x, j.y);
-                    const SampleResult r =
-                        shade_sample(ray, rng, static_cast<std::uint32_t>(std::uint64_t(y) * W + x), cnt, scratch);
-                    sum += r.color;
-                    cover += r.alpha;
+            for (std::uint32_t x0 = 0; x0 < W; x0 += static_cast<std::uint32_t>(chunk_pixels)) {
+                const std::uint32_t x1 = static_cast<std::uint32_t>(std::min<std::size_t>(W, x0 + chunk_pixels));
+                samples.clear();
+                rngs.clear();
+                for (std::uint32_t x = x0; x < x1; ++x) {  // camera rays, traced
+                    const auto pixel = static_cast<std::uint32_t>(std::uint64_t(y) * W + x);
+                    sampler.begin_pixel(pixel);
+                    for (unsigned s = 0; s < spp; ++s) {
+                        SampleRng& rng = rngs.emplace_back();
+                        const vec2 j = sampler.sample(s, rng);
+                        samples.push_back(trace_camera_ray(scene, shade_set.filter, frame.ray(x, y, j.x, j.y), pixel,
+                                                           hook_counts_steps<Hook>(), cnt));
+                    }
                 }
-                img.at(x, y) = vec4(sum * inv_spp, cover * inv_spp);
+                for (std::uint32_t x = x0; x < x1; ++x) {  // shaded in sample order
+                    vec3 sum(0.0f);
+                    float cover = 0.0f;
+                    for (unsigned s = 0; s < spp; ++s) {
+                        const std::size_t k = std::size_t(x - x0) * spp + s;
+                        const SampleResult r = shade_hook<Hook>(scene, shade_set, samples[k], rngs[k], params, cnt, scratch);
+                        sum += r.color;
+                        cover += r.alpha;
+                    }
+                    img.at(x, y) = vec4(sum * inv_spp, cover * inv_spp);
+                }
             }
             if (set.time_stages) row_ticks[y] = stage_ticks() - t_row;
             const std::size_t done = ++rows_done;
@@ -240,7 +262,7 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
 
     // ---- resolve
     const auto t_resolve = Clock::now();
-    if (set.shade.shader == ShaderKind::debug_cost) cost_heat_map(img, set.cost_scale);
+    if (heat_map) cost_heat_map(img, set.cost_scale);
     const double resolve_ms = ms_since(t_resolve);
 
     if (stats) {
@@ -273,15 +295,15 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
 
 }  // namespace detail
 
-/// Renders `scene` through `cam` (see the header comment). Throws std::invalid_argument for
-/// spp == 0 or an invalid camera (Camera::frame()); exceptions from workers are rethrown.
+/// Renders `scene` through `cam` with the built-in shader set.shade.shader (render/shaders.hpp;
+/// see the header comment). Throws std::invalid_argument for spp == 0 or an invalid camera
+/// (Camera::frame()); exceptions from workers are rethrown.
 inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const RenderSettings& set,
                         RenderStats* stats = nullptr) {
-    return detail::render_samples<PathScratch>(
-        scene, cam, set, stats,
-        [&](const Ray& ray, SampleRng& rng, std::uint32_t, ShadeCounters& cnt, PathScratch& scratch) {
-            return shade_ray(scene, set.shade, ray, rng, cnt, scratch);
-        });
+    return visit_shader(set.shade.shader, [&]<class S>(S) {
+        return detail::render_samples<S>(scene, cam, set, typename S::Params{}, stats,
+                                         set.shade.shader == ShaderKind::debug_cost);
+    });
 }
 
 /// Renders with ray hook H on the CPU (render/ray_hook.hpp): the twin of the device's
@@ -289,12 +311,7 @@ inline Image render_cpu(const ShadeScene& scene, const Camera& cam, const Render
 template <class H>
 Image render_hook_cpu(const ShadeScene& scene, const Camera& cam, const RenderSettings& set,
                       const typename H::Params& params, RenderStats* stats = nullptr) {
-    return detail::render_samples<std::vector<RayHookContext::Pending>>(
-        scene, cam, set, stats,
-        [&](const Ray& ray, SampleRng& rng, std::uint32_t pixel, ShadeCounters& cnt,
-            std::vector<RayHookContext::Pending>& scratch) {
-            return shade_hook<H>(scene, set.shade, ray, rng, pixel, params, cnt, scratch);
-        });
+    return detail::render_samples<H>(scene, cam, set, params, stats, false);
 }
 
 // ---------------------------------------------------------------- owning scene, framing, default light

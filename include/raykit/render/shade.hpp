@@ -1,53 +1,14 @@
-// raykit/render/shade.hpp — the CPU shaders: what one camera ray sees.
+// raykit/render/shade.hpp — what the shaders see: the scene view (ShadeScene), lights, settings,
+// counters, the surface at a hit (surface_point) and the two scene queries (Tracer).
 //
-// Interface
-// ---------
 //   Scene sc;  sc.add_instance(sc.add_object(mesh));  sc.update_top_level();   // scene/scene.hpp
 //   std::vector<MaterialTable> mt{make_material_table(sc.objects()[0].mesh)};   // one per object
 //   std::vector<Light> lights{Light::point({0, 5, 0}, vec3(1))};
 //   ShadeScene scene = make_shade_scene(sc, mt, lights);             // non-owning view
-//   ShadeSettings s;  s.shader = ShaderKind::whitted;  s.max_depth = 5;
-//   PathScratch scratch;  ShadeCounters counters;  SampleRng rng(seed);
-//   SampleResult r = shade_ray(scene, s, camera_ray, rng, counters, scratch);
-//   // r.color: linear RGB radiance, r.alpha: 1 when the camera ray hit something, r.cost: traversal steps
 //
-// shade_ray is the CPU twin of the device ray hook: it traces the camera ray and every ray its
-// shading asks for (shadow, reflection, refraction, ambient occlusion). render_cpu.hpp calls it
-// per sample. It is reentrant: all mutable state is in the arguments.
-//
-// Shaders (ShaderKind, names for parse_shader in brackets)
-// --------------------------------------------------------
-//  whitted ("whitted")   Whitted-style ray tracing. At each hit:
-//      colour = Ke + (1 - transparency) · (ambient · base + Σ_lights visible · base · max(0, N·L) · Lc)
-//                  + Σ_lights visible · Ks · max(0, N·H)^Ns · Lc
-//      base = Kd · map_Kd(uv) (linear), N the shading normal, H = normalize(L + V) (Blinn-Phong),
-//      "visible" = a shadow ray (any-hit) from the offset hit point to the light is unblocked
-//      (ShadeSettings::shadows). Lights have no distance falloff. The ambient term uses the
-//      diffuse colour (MTL Ka is ignored: exporters routinely write Ka 1 1 1). Then, while the
-//      path is shorter than max_depth bounces, it spawns
-//        - a mirror ray weighted by Ks for illum 3, 5, 7 (Schlick-Fresnel weighted for 5, 7), and
-//        - for transparent materials (see material.hpp) a refracted ray with weight
-//          transparency · (1 - F) and a reflected ray with weight transparency · F, F the exact
-//          dielectric Fresnel reflectance for index Ni (1 on total internal reflection).
-//      Child rays whose weight drops below min_weight (all channels) are not traced. Shadow rays
-//      treat every surface as opaque except alpha cut-outs.
-//  normals ("normals")   0.5 · N + 0.5 of the shading normal at the first hit.
-//  depth ("depth")       1 - distance / far at the first hit (far: ShadeSettings::depth_far, or the
-//                        distance from the ray origin to the farthest corner of the scene bounds).
-//  ao ("ao")             ambient occlusion: the fraction of ao_samples cosine-weighted rays from
-//                        the first hit that escape within ao_radius (default 0.1 · scene diagonal).
-//                        Ray i takes the next two numbers u1, u2 of the sample's generator (`rng`,
-//                        after the camera's jitter, see PixelSampler in render_cpu.hpp):
-//                        dir = T·(√u1 cos φ) + B·(√u1 sin φ) + N·√(1 - u1), φ = 2π·u2, (T, B) =
-//                        basis(N) around the shading normal N; a dir not above the geometric
-//                        surface counts as occluded and is not traced. Origin offset along the
-//                        geometric normal, tmin 0, tmax ao_radius. The device hook (cl/render.hpp)
-//                        draws the same numbers in the same order.
-//  debug_cost ("debug-cost")  r.cost = inner nodes + leaves visited by the camera ray's traversal
-//                        (TraversalStats of bvh/traverse.hpp: the root counts when its box is hit,
-//                        alpha cut-outs are skipped inside the walk); r.color = (cost, cost, cost),
-//                        to be mapped by the caller (render_cpu maps it with cost_heat_map).
-// Misses give ShadeSettings::background (and alpha 0 for a camera ray).
+// The shaders themselves are ray hooks: the built-in ones (whitted, normals, depth, ao,
+// debug-cost) in render/shaders.hpp, run per sample by the hooks' one driver, shade_hook
+// (render/ray_hook.hpp); render_cpu (render_cpu.hpp) renders with either.
 //
 // Geometry
 // --------
@@ -152,6 +113,26 @@ struct ShadeSettings {
     float depth_far = 0.0f;        ///< depth: distance mapped to 0; 0 = farthest scene corner
     float min_weight = 1e-3f;      ///< whitted: child rays below this weight are not traced
 };
+
+/// `s` with its scene-dependent defaults made explicit, the one rule of the CPU and device
+/// renderers: depth_far 0 becomes the distance from `eye` to the farthest corner of `bounds`,
+/// ao_radius 0 becomes 0.1 · the diagonal of `bounds` (infinity when that is 0).
+inline ShadeSettings resolve_shade_settings(ShadeSettings s, const AABB& bounds, const vec3& eye) noexcept {
+    if (!(s.depth_far > 0.0f)) {
+        float far = 0.0f;
+        for (int c = 0; c < 8; ++c) {
+            const vec3 corner((c & 1) ? bounds.max.x : bounds.min.x, (c & 2) ? bounds.max.y : bounds.min.y,
+                              (c & 4) ? bounds.max.z : bounds.min.z);
+            far = std::max(far, glm::length(corner - eye));
+        }
+        s.depth_far = far;
+    }
+    if (!(s.ao_radius > 0.0f)) {
+        s.ao_radius = 0.1f * glm::length(bounds.extent());
+        if (!(s.ao_radius > 0.0f)) s.ao_radius = kInf;
+    }
+    return s;
+}
 
 /// Rays traced, by kind.
 struct RayCounts {
@@ -292,18 +273,6 @@ struct SampleResult {
     float cost = 0.0f;   ///< debug_cost: traversal steps of the camera ray
 };
 
-/// Reusable work space for shade_ray (one per thread): the pending rays of a path.
-struct PathScratch {
-    enum class Kind : std::uint8_t { primary, reflection, refraction };
-    struct Item {
-        Ray ray;
-        vec3 weight;
-        std::uint32_t depth;
-        Kind kind;
-    };
-    std::vector<Item> stack;
-};
-
 /// The surface at a hit, as the shaders see it.
 struct SurfacePoint {
     vec3 p{0.0f};       ///< position (barycentric interpolation of the vertices)
@@ -313,6 +282,7 @@ struct SurfacePoint {
     bool entering = true;  ///< the ray arrives from the outside (see "Geometry" above)
     const RenderMaterial* material = nullptr;
     vec3 base{0.0f};    ///< Kd times the map_Kd colour
+    vec3 d{0.0f};       ///< unit direction of the incoming ray
 };
 
 namespace detail {
@@ -418,6 +388,7 @@ inline SurfacePoint surface_point(const ShadeScene& s, const Hit& hit, const vec
                     a[2] * n.x + a[6] * n.y + a[10] * n.z);
     };
     SurfacePoint sp;
+    sp.d = d;
     sp.p = p0 * w0 + p1 * hit.u + p2 * hit.v;
     if (!in.identity) sp.p = in.to_world.point(sp.p);
     vec3 ng = normal_to_world(glm::cross(p1 - p0, p2 - p0));
@@ -441,183 +412,6 @@ inline SurfacePoint surface_point(const ShadeScene& s, const Hit& hit, const vec
     sp.base = sp.material->kd;
     if (sp.material->map_kd) sp.base *= vec3(sp.material->map_kd->sample(sp.uv, filter));
     return sp;
-}
-
-namespace detail {
-
-template <SceneTrees kTrees, bool kAlpha>
-SampleResult shade_impl(const ShadeScene& s, const ShadeSettings& set, const Ray& camera_ray, SampleRng& rng,
-                        ShadeCounters& cnt, PathScratch& scratch) {
-    const Tracer<kTrees, kAlpha> tr{s, set.filter};
-    const bool tm = cnt.time_stages;
-    SampleResult res;
-    res.color = set.background;
-    ++cnt.rays.primary;
-    ++cnt.bounce_rays[0];
-    std::uint64_t& ticks0 = cnt.times.bounce_ticks[0];
-
-    // ---- first-hit shaders
-    if (set.shader != ShaderKind::whitted) {
-        Hit h;
-        if (set.shader == ShaderKind::debug_cost) {
-            TraversalStats st;
-            h = timed(tm, cnt.times.trace_ticks, ticks0, [&] { return tr.closest(camera_ray, &st); });
-            res.cost = float(st.nodes + st.leaves);
-            cnt.traversal_steps += st.nodes + st.leaves;
-            res.color = vec3(res.cost);
-            res.alpha = h.valid() ? 1.0f : 0.0f;
-            return res;
-        }
-        h = timed(tm, cnt.times.trace_ticks, ticks0, [&] { return tr.closest(camera_ray); });
-        if (!h.valid()) return res;
-        res.alpha = 1.0f;
-        const float dl = glm::length(camera_ray.dir);
-        const vec3 d = camera_ray.dir / dl;
-        const SurfacePoint sp = surface_point(s, h, d, set.filter);
-        if (set.shader == ShaderKind::normals) {
-            res.color = sp.ns * 0.5f + vec3(0.5f);
-        } else if (set.shader == ShaderKind::depth) {
-            float far = set.depth_far;
-            if (!(far > 0.0f)) {
-                far = 0.0f;
-                for (int c = 0; c < 8; ++c) {
-                    const vec3 corner((c & 1) ? s.bounds.max.x : s.bounds.min.x,
-                                      (c & 2) ? s.bounds.max.y : s.bounds.min.y,
-                                      (c & 4) ? s.bounds.max.z : s.bounds.min.z);
-                    far = std::max(far, glm::length(corner - camera_ray.org));
-                }
-            }
-            const float dist = h.t * dl;
-            res.color = vec3(far > 0.0f ? std::clamp(1.0f - dist / far, 0.0f, 1.0f) : 0.0f);
-        } else {  // ao
-            float radius = set.ao_radius;
-            if (!(radius > 0.0f)) radius = 0.1f * glm::length(s.bounds.extent());
-            if (!(radius > 0.0f)) radius = kInf;
-            const vec3 org = offset_ray_origin(sp.p, sp.ng);
-            vec3 tb, bb;
-            basis(sp.ns, tb, bb);
-            unsigned open = 0;
-            for (unsigned i = 0; i < set.ao_samples; ++i) {
-                const float u1 = rng.next_float(), u2 = rng.next_float();
-                const float r = std::sqrt(u1), phi = 6.28318530717958647692f * u2;
-                const vec3 dir = tb * (r * std::cos(phi)) + bb * (r * std::sin(phi)) + sp.ns * std::sqrt(1.0f - u1);
-                if (!(glm::dot(dir, sp.ng) > 0.0f)) continue;  // below the geometric surface: occluded
-                ++cnt.rays.ao;
-                ++cnt.bounce_rays[0];
-                const Ray ar{org, 0.0f, dir, radius};
-                if (!timed(tm, cnt.times.shadow_ticks, ticks0, [&] { return tr.any(ar); })) ++open;
-            }
-            res.color = vec3(set.ao_samples ? float(open) / float(set.ao_samples) : 1.0f);
-        }
-        return res;
-    }
-
-    // ---- Whitted: an explicit stack of pending rays (a tree of at most 2 children per hit)
-    using Kind = PathScratch::Kind;
-    auto& stack = scratch.stack;
-    stack.clear();
-    vec3 L(0.0f);
-    // the camera ray is traced from where it is, not through the stack (a copy of a ray just
-    // stored stalls the ray setup's vector loads); children are popped in the increment
-    PathScratch::Item it{camera_ray, vec3(1.0f), 0u, Kind::primary};
-    const Ray* ray = &camera_ray;
-    for (bool more = true; more;
-         more = !stack.empty() && (it = stack.back(), stack.pop_back(), ray = &it.ray, true)) {
-        if (it.kind == Kind::reflection) ++cnt.rays.reflection;
-        if (it.kind == Kind::refraction) ++cnt.rays.refraction;
-        const unsigned slot = bounce_slot(it.depth);
-        if (it.kind != Kind::primary) ++cnt.bounce_rays[slot];
-        std::uint64_t& bticks = cnt.times.bounce_ticks[slot];
-        cnt.deepest = std::max(cnt.deepest, it.depth);
-        const Hit h = timed(tm, cnt.times.trace_ticks, bticks, [&] { return tr.closest(*ray); });
-        if (!h.valid()) {
-            L += it.weight * set.background;
-            continue;
-        }
-        if (it.kind == Kind::primary) res.alpha = 1.0f;
-        const vec3 d = glm::normalize(it.ray.dir);
-        const SurfacePoint sp = surface_point(s, h, d, set.filter);
-        const RenderMaterial& mat = *sp.material;
-        const float opaque = 1.0f - mat.transparency;
-
-        vec3 diffuse = set.ambient * sp.base;
-        vec3 specular(0.0f);
-        if (!s.lights.empty()) {
-            const vec3 org = offset_ray_origin(sp.p, sp.ng);
-            const bool want_spec = detail::max3(mat.ks) > 0.0f;
-            for (const Light& l : s.lights) {
-                vec3 ldir;
-                float tmax;
-                if (!light_ray(l, org, ldir, tmax)) continue;
-                const float nl = glm::dot(sp.ns, ldir);
-                if (!(nl > 0.0f) || !(glm::dot(sp.ng, ldir) > 0.0f)) continue;
-                if (set.shadows) {
-                    ++cnt.rays.shadow;
-                    ++cnt.bounce_rays[slot];
-                    const Ray sr{org, 0.0f, ldir, tmax};
-                    if (timed(tm, cnt.times.shadow_ticks, bticks, [&] { return tr.any(sr); })) continue;
-                }
-                diffuse += sp.base * (nl * l.color);
-                if (want_spec) {
-                    const vec3 hv = glm::normalize(ldir - d);
-                    const float nh = std::max(0.0f, glm::dot(sp.ns, hv));
-                    specular += mat.ks * (std::pow(nh, mat.ns) * l.color);
-                }
-            }
-        }
-        L += it.weight * (mat.ke + opaque * diffuse + specular);
-
-        if (it.depth >= set.max_depth) continue;
-        const float cos_i = std::max(0.0f, -glm::dot(d, sp.ns));
-        vec3 refl = mat.mirror;
-        if (mat.fresnel_mirror && detail::max3(mat.mirror) > 0.0f) refl = detail::schlick(mat.mirror, cos_i);
-        float trans = 0.0f;
-        vec3 tdir(0.0f);
-        if (mat.transparency > 0.0f) {
-            const float eta = sp.entering ? 1.0f / mat.ni : mat.ni;
-            float cos_t = 0.0f;
-            const float F = detail::fresnel_dielectric(cos_i, eta, cos_t);
-            refl += vec3(mat.transparency * F);
-            if (F < 1.0f) {
-                trans = mat.transparency * (1.0f - F);
-                tdir = d * eta + sp.ns * (eta * cos_i - cos_t);
-                if (!(glm::dot(tdir, sp.ng) < 0.0f)) {  // the shading normal bent it back: use ng
-                    const float ci = std::max(0.0f, -glm::dot(d, sp.ng));
-                    const float s2 = eta * eta * std::max(0.0f, 1.0f - ci * ci);
-                    if (s2 < 1.0f) tdir = d * eta + sp.ng * (eta * ci - std::sqrt(1.0f - s2));
-                    else trans = 0.0f;
-                }
-            }
-        }
-        const vec3 wt = it.weight * trans;
-        if (trans > 0.0f && detail::max3(wt) > set.min_weight) {
-            const Ray rr{offset_ray_origin(sp.p, -sp.ng), 0.0f, glm::normalize(tdir), kInf};
-            stack.push_back({rr, wt, it.depth + 1, Kind::refraction});
-        }
-        const vec3 wr = it.weight * refl;
-        if (detail::max3(wr) > set.min_weight) {
-            vec3 rdir = d - sp.ns * (2.0f * glm::dot(d, sp.ns));
-            if (!(glm::dot(rdir, sp.ng) > 0.0f)) rdir = d - sp.ng * (2.0f * glm::dot(d, sp.ng));
-            const Ray rr{offset_ray_origin(sp.p, sp.ng), 0.0f, rdir, kInf};
-            stack.push_back({rr, wr, it.depth + 1, Kind::reflection});
-        }
-    }
-    res.color = L;
-    return res;
-}
-
-}  // namespace detail
-
-/// Shades one camera ray (see the header comment). `scene` from make_shade_scene.
-inline SampleResult shade_ray(const ShadeScene& scene, const ShadeSettings& settings, const Ray& camera_ray,
-                              SampleRng& rng, ShadeCounters& counters, PathScratch& scratch) {
-    if (!scene.scene) throw std::invalid_argument("raykit::shade_ray: incomplete ShadeScene (use make_shade_scene)");
-    const bool blocks = scene.trees == SceneTrees::blocks, alpha = scene.alpha_testing;
-    using T = SceneTrees;
-    if (blocks && alpha) return detail::shade_impl<T::blocks, true>(scene, settings, camera_ray, rng, counters, scratch);
-    if (blocks) return detail::shade_impl<T::blocks, false>(scene, settings, camera_ray, rng, counters, scratch);
-    if (alpha) return detail::shade_impl<T::binary, true>(scene, settings, camera_ray, rng, counters, scratch);
-    return detail::shade_impl<T::binary, false>(scene, settings, camera_ray, rng, counters, scratch);
 }
 
 /// Closest hit of `ray` as the shaders see it (alpha cut-outs skipped).
