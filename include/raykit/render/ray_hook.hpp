@@ -92,34 +92,39 @@ namespace detail {
 /// when kAlpha, timed into `ticks` and `bounce_ticks` when `timed` (ShadeCounters::time_stages).
 template <SceneTrees kTrees, bool kAlpha>
 struct HookTracer {
-    static Hit closest(const ShadeScene& s, TextureFilter f, const Ray& r, TraversalStats* st) {
+    RAYKIT_INLINE static Hit closest(const ShadeScene& s, TextureFilter f, const Ray& r, TraversalStats* st) {
         const Tracer<kTrees, kAlpha> tr{s, f};
         return st ? tr.closest(r, st) : tr.closest(r);
     }
     static bool any(const ShadeScene& s, TextureFilter f, const Ray& r) { return Tracer<kTrees, kAlpha>{s, f}.any(r); }
 };
 
-/// The closest-hit and any-hit queries of `s` (its trees, its alpha testing), chosen once.
-struct SceneQueries {
-    Hit (*closest)(const ShadeScene&, TextureFilter, const Ray&, TraversalStats*) = nullptr;
-    bool (*any)(const ShadeScene&, TextureFilter, const Ray&) = nullptr;
+/// Calls f(HookTracer<trees, alpha>{}) for the trees and alpha testing of `s`: the queries are
+/// chosen once per frame or sample and inlined below that, not chosen per ray.
+template <class F>
+decltype(auto) visit_queries(const ShadeScene& s, F&& f) {
+    const bool blocks = s.trees == SceneTrees::blocks;
+    if (blocks && s.alpha_testing) return f(HookTracer<SceneTrees::blocks, true>{});
+    if (blocks) return f(HookTracer<SceneTrees::blocks, false>{});
+    if (s.alpha_testing) return f(HookTracer<SceneTrees::binary, true>{});
+    return f(HookTracer<SceneTrees::binary, false>{});
+}
 
-    explicit SceneQueries(const ShadeScene& s) noexcept {
-        const bool blocks = s.trees == SceneTrees::blocks;
-        if (blocks && s.alpha_testing) set<SceneTrees::blocks, true>();
-        else if (blocks) set<SceneTrees::blocks, false>();
-        else if (s.alpha_testing) set<SceneTrees::binary, true>();
-        else set<SceneTrees::binary, false>();
-    }
+}  // namespace detail
 
-private:
-    template <SceneTrees kTrees, bool kAlpha>
-    void set() noexcept {
-        closest = &HookTracer<kTrees, kAlpha>::closest;
-        any = &HookTracer<kTrees, kAlpha>::any;
-    }
+/// A continuation ray waiting to be traced, with its generator's state.
+struct PendingRay {
+    PathRay path;
+    std::uint64_t rng;
 };
 
+/// Reusable work space of the hooks' driver (one per thread): the pending rays of a sample.
+using PathScratch = std::vector<PendingRay>;
+
+namespace detail {
+template <class H, class Q>
+SampleResult shade_sample(const ShadeScene&, const ShadeSettings&, const CameraSample&, SampleRng&,
+                          const typename H::Params&, ShadeCounters&, PathScratch&);
 }  // namespace detail
 
 /// What a CPU hook may call while it shades one ray (see the header comment).
@@ -144,7 +149,7 @@ public:
         const Ray r{org, 0.0f, dir, tmax};
         const bool blocked = detail::timed(counters_->time_stages, counters_->times.shadow_ticks,
                                            counters_->times.bounce_ticks[slot],
-                                           [&] { return queries_->any(*scene_, set_->filter, r); });
+                                           [&] { return any_(*scene_, set_->filter, r); });
         if (!blocked) color_ += c;
         return true;
     }
@@ -158,30 +163,96 @@ public:
         return true;
     }
 
-    /// A continuation ray waiting to be traced, with its generator's state.
-    struct Pending {
-        PathRay path;
-        std::uint64_t rng;
-    };
-
 private:
-    template <class H>
-    friend SampleResult shade_hook(const ShadeScene&, const ShadeSettings&, const CameraSample&, SampleRng&,
-                                   const typename H::Params&, ShadeCounters&, std::vector<Pending>&);
+    template <class H, class Q>
+    friend SampleResult detail::shade_sample(const ShadeScene&, const ShadeSettings&, const CameraSample&, SampleRng&,
+                                             const typename H::Params&, ShadeCounters&, PathScratch&);
     const ShadeScene* scene_ = nullptr;
     const ShadeSettings* set_ = nullptr;
-    const detail::SceneQueries* queries_ = nullptr;
+    bool (*any_)(const ShadeScene&, TextureFilter, const Ray&) = nullptr;  ///< the frame's any-hit query
     const PathRay* path_ = nullptr;
     ShadeCounters* counters_ = nullptr;
-    std::vector<Pending>* pending_ = nullptr;
+    PathScratch* pending_ = nullptr;
     SampleRng rng_;
     vec3 color_{0.0f};
     float alpha_ = 0.0f;
     unsigned steps_ = 0, rays_left_ = 0, shadows_left_ = 0;
 };
 
-/// Reusable work space of the hooks' driver (one per thread): the pending rays of a sample.
-using PathScratch = std::vector<RayHookContext::Pending>;
+namespace detail {
+
+/// shade_hook's body with the scene queries Q (a HookTracer) fixed.
+template <class H, class Q>
+SampleResult shade_sample(const ShadeScene& scene, const ShadeSettings& set, const CameraSample& camera, SampleRng& rng,
+                          const typename H::Params& params, ShadeCounters& cnt, PathScratch& pending) {
+    static_assert(CpuRayHook<H>, "a CPU ray hook needs Params, max_rays, max_shadow_rays and a static shade()");
+    pending.clear();
+    RayHookContext ctx;
+    ctx.scene_ = &scene;
+    ctx.set_ = &set;
+    ctx.any_ = &Q::any;
+    ctx.counters_ = &cnt;
+    ctx.pending_ = &pending;
+    const unsigned per_hit_shadows = H::max_shadow_rays == kPerLight      ? unsigned(scene.lights.size())
+                                     : H::max_shadow_rays == kPerAoSample ? set.ao_samples
+                                                                          : unsigned(H::max_shadow_rays);
+    // one shading call site, first for the camera ray (traced by the caller), then for each
+    // continuation ray popped from `pending` and traced here, depth first
+    const PathRay camera_path{camera.ray, vec3(1.0f), camera.pixel, 0, 0};
+    if constexpr (hook_counts_steps<H>()) cnt.traversal_steps += camera.steps;
+    PendingRay item;
+    const PathRay* path = &camera_path;
+    Hit h = camera.hit;
+    unsigned steps = camera.steps;
+    ctx.rng_.state = rng.state;
+    for (;;) {
+        SurfacePoint s;
+        if (h.valid()) s = surface_point(scene, h, glm::normalize(path->ray.dir), set.filter);
+        ctx.path_ = path;
+        ctx.steps_ = steps;
+        ctx.rays_left_ = H::max_rays;
+        ctx.shadows_left_ = per_hit_shadows;
+        H::shade(ctx, *path, h, s, params);
+        if (path == &camera_path) rng = ctx.rng_;  // the sample's generator goes on from the camera ray's
+        if (pending.empty()) break;
+        item = pending.back();
+        pending.pop_back();
+        path = &item.path;
+        if (path->kind == 1) ++cnt.rays.reflection;
+        else ++cnt.rays.refraction;
+        const unsigned slot = bounce_slot(path->depth);
+        ++cnt.bounce_rays[slot];
+        cnt.deepest = std::max(cnt.deepest, path->depth);
+        TraversalStats st;
+        h = timed(cnt.time_stages, cnt.times.trace_ticks, cnt.times.bounce_ticks[slot], [&] {
+            return Q::closest(scene, set.filter, path->ray, hook_counts_steps<H>() ? &st : nullptr);
+        });
+        steps = st.nodes + st.leaves;
+        ctx.rng_.state = item.rng;
+    }
+    SampleResult res;
+    res.color = ctx.color_;
+    res.alpha = ctx.alpha_;
+    if constexpr (hook_counts_steps<H>()) res.cost = float(camera.steps);
+    return res;
+}
+
+/// trace_camera_ray with the scene queries Q fixed, into `c` (traced from `ray`, not from the
+/// copy just stored in c.ray: loading a ray right after storing it stalls the setup's vector loads).
+template <class Q>
+RAYKIT_INLINE void trace_camera(const ShadeScene& scene, TextureFilter filter, const Ray& ray, std::uint32_t pixel,
+                                bool steps, ShadeCounters& cnt, CameraSample& c) {
+    TraversalStats st;
+    c.hit = timed(cnt.time_stages, cnt.times.trace_ticks, cnt.times.bounce_ticks[0],
+                  [&] { return Q::closest(scene, filter, ray, steps ? &st : nullptr); });
+    c.ray = ray;
+    c.pixel = pixel;
+    c.steps = st.nodes + st.leaves;
+    ++cnt.rays.primary;
+    ++cnt.bounce_rays[0];
+}
+
+}  // namespace detail
 
 /// Shades one sample with hook H from its traced camera ray (see the header comment): the CPU
 /// twin of one sample of the device's render_hook<H>. `set` as resolve_shade_settings gives
@@ -191,53 +262,9 @@ using PathScratch = std::vector<RayHookContext::Pending>;
 template <class H>
 SampleResult shade_hook(const ShadeScene& scene, const ShadeSettings& set, const CameraSample& camera, SampleRng& rng,
                         const typename H::Params& params, ShadeCounters& cnt, PathScratch& pending) {
-    static_assert(CpuRayHook<H>, "a CPU ray hook needs Params, max_rays, max_shadow_rays and a static shade()");
-    const detail::SceneQueries queries(scene);
-    pending.clear();
-    RayHookContext ctx;
-    ctx.scene_ = &scene;
-    ctx.set_ = &set;
-    ctx.queries_ = &queries;
-    ctx.counters_ = &cnt;
-    ctx.pending_ = &pending;
-    const unsigned per_hit_shadows = H::max_shadow_rays == kPerLight      ? unsigned(scene.lights.size())
-                                     : H::max_shadow_rays == kPerAoSample ? set.ao_samples
-                                                                          : unsigned(H::max_shadow_rays);
-    // shades `path` at its hit `h` (steps: its traversal's), with the generator state `state`
-    const auto shade = [&](const PathRay& path, const Hit& h, unsigned steps, std::uint64_t state) {
-        SurfacePoint s;
-        if (h.valid()) s = surface_point(scene, h, glm::normalize(path.ray.dir), set.filter);
-        ctx.path_ = &path;
-        ctx.rng_.state = state;
-        ctx.steps_ = steps;
-        ctx.rays_left_ = H::max_rays;
-        ctx.shadows_left_ = per_hit_shadows;
-        H::shade(ctx, path, h, s, params);
-    };
-    const PathRay camera_path{camera.ray, vec3(1.0f), camera.pixel, 0, 0};
-    if constexpr (hook_counts_steps<H>()) cnt.traversal_steps += camera.steps;
-    shade(camera_path, camera.hit, camera.steps, rng.state);
-    rng = ctx.rng_;  // the sample's generator goes on from the camera ray's
-    while (!pending.empty()) {
-        const RayHookContext::Pending item = pending.back();
-        pending.pop_back();
-        const PathRay& path = item.path;
-        if (path.kind == 1) ++cnt.rays.reflection;
-        else ++cnt.rays.refraction;
-        const unsigned slot = bounce_slot(path.depth);
-        ++cnt.bounce_rays[slot];
-        cnt.deepest = std::max(cnt.deepest, path.depth);
-        TraversalStats st;
-        const Hit h = detail::timed(cnt.time_stages, cnt.times.trace_ticks, cnt.times.bounce_ticks[slot], [&] {
-            return queries.closest(scene, set.filter, path.ray, hook_counts_steps<H>() ? &st : nullptr);
-        });
-        shade(path, h, st.nodes + st.leaves, item.rng);
-    }
-    SampleResult res;
-    res.color = ctx.color_;
-    res.alpha = ctx.alpha_;
-    if constexpr (hook_counts_steps<H>()) res.cost = float(camera.steps);
-    return res;
+    return detail::visit_queries(scene, [&]<class Q>(Q) {
+        return detail::shade_sample<H, Q>(scene, set, camera, rng, params, cnt, pending);
+    });
 }
 
 /// The camera sample of `ray` through pixel `pixel`: its closest hit in `scene` (with its
@@ -245,16 +272,8 @@ SampleResult shade_hook(const ShadeScene& scene, const ShadeSettings& set, const
 /// cnt.time_stages). The renderers trace camera rays with this before shade_hook.
 inline CameraSample trace_camera_ray(const ShadeScene& scene, TextureFilter filter, const Ray& ray,
                                      std::uint32_t pixel, bool steps, ShadeCounters& cnt) {
-    const detail::SceneQueries queries(scene);
     CameraSample c;
-    c.ray = ray;
-    c.pixel = pixel;
-    TraversalStats st;
-    c.hit = detail::timed(cnt.time_stages, cnt.times.trace_ticks, cnt.times.bounce_ticks[0],
-                          [&] { return queries.closest(scene, filter, ray, steps ? &st : nullptr); });
-    c.steps = st.nodes + st.leaves;
-    ++cnt.rays.primary;
-    ++cnt.bounce_rays[0];
+    detail::visit_queries(scene, [&]<class Q>(Q) { detail::trace_camera<Q>(scene, filter, ray, pixel, steps, cnt, c); });
     return c;
 }
 

@@ -213,6 +213,7 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
     const auto t_render = Clock::now();
     const std::uint64_t ticks_render = set.time_stages ? stage_ticks() : 0;
     const float inv_spp = 1.0f / float(spp);
+    visit_queries(scene, [&]<class Q>(Q) {
     parallel_chunks(H, H, threads, [&](std::size_t, std::size_t y0, std::size_t y1) {
         PathScratch scratch;
         PixelSampler sampler(spp, set.seed, set.jitter);
@@ -225,16 +226,16 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
             cnt.time_stages = set.time_stages;
             for (std::uint32_t x0 = 0; x0 < W; x0 += static_cast<std::uint32_t>(chunk_pixels)) {
                 const std::uint32_t x1 = static_cast<std::uint32_t>(std::min<std::size_t>(W, x0 + chunk_pixels));
-                samples.clear();
-                rngs.clear();
+                samples.resize(std::size_t(x1 - x0) * spp);
+                rngs.resize(samples.size());
                 for (std::uint32_t x = x0; x < x1; ++x) {  // camera rays, traced
                     const auto pixel = static_cast<std::uint32_t>(std::uint64_t(y) * W + x);
                     sampler.begin_pixel(pixel);
                     for (unsigned s = 0; s < spp; ++s) {
-                        SampleRng& rng = rngs.emplace_back();
-                        const vec2 j = sampler.sample(s, rng);
-                        samples.push_back(trace_camera_ray(scene, shade_set.filter, frame.ray(x, y, j.x, j.y), pixel,
-                                                           hook_counts_steps<Hook>(), cnt));
+                        const std::size_t k = std::size_t(x - x0) * spp + s;
+                        const vec2 j = sampler.sample(s, rngs[k]);
+                        trace_camera<Q>(scene, shade_set.filter, frame.ray(x, y, j.x, j.y), pixel,
+                                        hook_counts_steps<Hook>(), cnt, samples[k]);
                     }
                 }
                 for (std::uint32_t x = x0; x < x1; ++x) {  // shaded in sample order
@@ -242,7 +243,7 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
                     float cover = 0.0f;
                     for (unsigned s = 0; s < spp; ++s) {
                         const std::size_t k = std::size_t(x - x0) * spp + s;
-                        const SampleResult r = shade_hook<Hook>(scene, shade_set, samples[k], rngs[k], params, cnt, scratch);
+                        const SampleResult r = shade_sample<Hook, Q>(scene, shade_set, samples[k], rngs[k], params, cnt, scratch);
                         sum += r.color;
                         cover += r.alpha;
                     }
@@ -256,6 +257,7 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
                 set.progress(done, H);
             }
         }
+    });
     });
     const double render_ms = ms_since(t_render);
     const std::uint64_t render_ticks = set.time_stages ? stage_ticks() - ticks_render : 0;
