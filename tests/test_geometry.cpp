@@ -521,3 +521,32 @@ TEST(Watertight, RoundsAsRaykitFastFmaSays) {
     EXPECT_EQ(agree_claim, decisive);
     EXPECT_EQ(agree_other, 0);
 }
+
+// Mesh::bounds() against a box grown by hand over the vertices of the finite triangles: a
+// triangle with a NaN or infinite vertex adds nothing (a tree never needs room for it), and
+// a vertex no triangle uses adds nothing either.
+TEST(Mesh, BoundsCoverTheFiniteTrianglesOnly) {
+    std::mt19937 rng(1234);
+    std::uniform_real_distribution<float> u(-100.0f, 100.0f);
+    Mesh m;
+    for (int i = 0; i < 60; ++i) m.positions.push_back({u(rng), u(rng), u(rng)});
+    m.positions.push_back({1e6f, 0.0f, 0.0f});                                      // 60: unused
+    m.positions.push_back({std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f});   // 61
+    m.positions.push_back({0.0f, std::numeric_limits<float>::infinity(), 0.0f});    // 62
+    for (std::uint32_t t = 0; t < 18; ++t) m.triangles.push_back({{3 * t, 3 * t + 1, 3 * t + 2}});
+    m.triangles.push_back({{0, 61, 1}});
+    m.triangles.push_back({{62, 2, 3}});
+    vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+    for (std::uint32_t i = 0; i < 54; ++i) {
+        lo = glm::min(lo, m.positions[i]);
+        hi = glm::max(hi, m.positions[i]);
+    }
+    const AABB b = m.bounds();
+    EXPECT_EQ(b.min, lo);
+    EXPECT_EQ(b.max, hi);
+    EXPECT_EQ(MeshView(m).bounds().min, lo);
+    EXPECT_EQ(m.triangle_count(), MeshView(m).triangle_count());
+    EXPECT_EQ(m.vertex_count(), MeshView(m).vertex_count());
+    Mesh none;
+    EXPECT_TRUE(none.bounds().is_empty());
+}

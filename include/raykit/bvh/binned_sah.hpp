@@ -147,16 +147,16 @@ private:
 
         struct Binner {
             vec3 lo, scale;
-            int nb;
-            int index(const vec3& c, int a) const {
+            std::size_t nb;
+            std::size_t index(const vec3& c, int a) const {
                 const float f = (c[a] - lo[a]) * scale[a];
-                int k = f > 0.0f ? static_cast<int>(f) : 0;
+                const std::size_t k = f > 0.0f ? static_cast<std::size_t>(f) : 0;
                 return k < nb ? k : nb - 1;
             }
         };
 
         void bin(std::uint32_t b, std::uint32_t e, const Binner& bn, std::vector<Bin>& out) const {
-            const int nb = bn.nb;
+            const std::size_t nb = bn.nb;
             auto pass = [&](std::size_t lo, std::size_t hi, Bin* dst) {
                 for (std::size_t i = lo; i < hi; ++i) {
                     const vec3& c = refs[i].c;
@@ -181,7 +181,7 @@ private:
                 pass(b + lo, b + hi, part.data() + c * 3 * nb);
             });
             for (std::size_t c = 0; c < kChunks; ++c)
-                for (int k = 0; k < 3 * nb; ++k) {
+                for (std::size_t k = 0; k < 3 * nb; ++k) {
                     out[k].box.grow(part[c * 3 * nb + k].box);
                     out[k].count += part[c * 3 * nb + k].count;
                 }
@@ -284,7 +284,7 @@ private:
                 if (n <= cfg.leaf.max_leaf_size) return make_leaf(node, b, e, box);
                 mid = median(b, e, 0);
             } else {
-                const int nb = static_cast<int>(cfg.bins);
+                const std::size_t nb = cfg.bins;
                 Binner bn{cbox.min, vec3(0.0f), nb};
                 for (int a = 0; a < 3; ++a)
                     bn.scale[a] = ext[a] > 0.0f ? static_cast<float>(nb) * (1.0f - 1e-6f) / ext[a] : 0.0f;
@@ -293,13 +293,14 @@ private:
                 sc.rarea.resize(nb);
                 sc.rcount.resize(nb);
                 float best = kInf;
-                int best_axis = -1, best_split = 0;
+                int best_axis = -1;
+                std::size_t best_split = 0;
                 for (int a = 0; a < 3; ++a) {
                     if (!(ext[a] > 0.0f)) continue;
-                    const Bin* ab = sc.bins.data() + a * nb;
+                    const Bin* ab = sc.bins.data() + static_cast<std::size_t>(a) * nb;
                     AABB acc;
                     std::uint32_t cnt = 0;
-                    for (int k = nb - 1; k > 0; --k) {
+                    for (std::size_t k = nb - 1; k > 0; --k) {
                         acc.grow(ab[k].box);
                         cnt += ab[k].count;
                         sc.rarea[k] = acc.half_area();
@@ -307,7 +308,7 @@ private:
                     }
                     acc = AABB{};
                     cnt = 0;
-                    for (int k = 1; k < nb; ++k) {
+                    for (std::size_t k = 1; k < nb; ++k) {
                         acc.grow(ab[k - 1].box);
                         cnt += ab[k - 1].count;
                         if (cnt == 0 || sc.rcount[k] == 0) continue;

@@ -120,7 +120,7 @@ struct MergeTree {
 };
 
 /// ⌈log2 c⌉ for c ≥ 1: the height of a median-split tree over c primitives.
-inline int ceil_log2(std::uint64_t c) noexcept { return c <= 1 ? 0 : std::bit_width(c - 1); }
+inline int ceil_log2(std::uint64_t c) noexcept { return c <= 1 ? 0 : static_cast<int>(std::bit_width(c - 1)); }
 
 /// Depth-limit pass. Rebuilds, with median splits, subtrees that would end
 /// deeper than RAYKIT_BVH_MAX_DEPTH (= D).

@@ -375,11 +375,11 @@ private:
         static const PartitionTable t = [] {
             PartitionTable r;
             std::size_t at = 0;
-            for (int s = 0; s < (1 << kTreeletLeaves); ++s) {
+            for (unsigned s = 0; s < (1u << kTreeletLeaves); ++s) {
                 r.begin[s] = static_cast<std::uint16_t>(at);
                 if (s == 0 || (s & (s - 1)) == 0) continue;
-                const int low = s & -s, rest = s ^ low;
-                for (int q = (rest - 1) & rest;; q = (q - 1) & rest) {
+                const unsigned low = s & (0u - s), rest = s ^ low;
+                for (unsigned q = (rest - 1) & rest;; q = (q - 1) & rest) {
                     r.p[at++] = static_cast<std::uint8_t>(q | low);
                     if (q == 0) break;
                 }
@@ -396,16 +396,16 @@ private:
         std::array<std::uint32_t, kTreeletLeaves> leaf{};
         std::array<std::uint32_t, kTreeletLeaves> inner_ids{};
         std::array<float, kTreeletLeaves> la{};  // leaf areas, -1 for primitives (never opened)
-        int nl = 0, ni = 0;
-        auto add = [&](int at, std::uint32_t id) {
+        unsigned nl = 0, ni = 0;
+        auto add = [&](unsigned at, std::uint32_t id) {
             leaf[at] = id;
             la[at] = inner(id) ? area(id) : -1.0f;
         };
         add(nl++, kid_[v - n_][0]);
         add(nl++, kid_[v - n_][1]);
         while (nl < kTreeletLeaves) {
-            int pick = 0;
-            for (int i = 1; i < nl; ++i)
+            unsigned pick = 0;
+            for (unsigned i = 1; i < nl; ++i)
                 if (la[i] > la[pick]) pick = i;
             if (la[pick] < 0.0f) break;
             const std::uint32_t x = leaf[pick];
@@ -414,16 +414,16 @@ private:
             add(nl++, kid_[x - n_][1]);
         }
         if (nl < 3) return false;
-        const int S = 1 << nl;
+        const unsigned S = 1u << nl;
         const PartitionTable& tab = partition_table();
         std::array<AABB, 1 << kTreeletLeaves> sb;
         std::array<float, 1 << kTreeletLeaves> sa, copt;
         std::array<std::uint32_t, 1 << kTreeletLeaves> sc;
         const std::uint32_t max_leaf = lc_.leaf_limit();
-        for (int s = 1; s < S; ++s) {
-            const int low = s & -s;
+        for (unsigned s = 1; s < S; ++s) {
+            const unsigned low = s & (0u - s);
             if (s == low) {
-                const std::uint32_t id = leaf[std::countr_zero(static_cast<unsigned>(s))];
+                const std::uint32_t id = leaf[static_cast<unsigned>(std::countr_zero(s))];
                 sb[s] = box_[id];
                 sc[s] = count_[id];
                 sa[s] = ha(sb[s]);
@@ -435,9 +435,9 @@ private:
             sa[s] = ha(sb[s]);
             // least cost of splitting s in two (four independent minima)
             const std::uint8_t* P = tab.p.data() + tab.begin[s];
-            const int np = tab.begin[s + 1] - tab.begin[s];
+            const unsigned np = unsigned(tab.begin[s + 1]) - tab.begin[s];
             float b0 = kInf, b1 = kInf, b2 = kInf, b3 = kInf;
-            int i = 0;
+            unsigned i = 0;
             for (; i + 4 <= np; i += 4) {
                 b0 = std::min(b0, copt[P[i]] + copt[s ^ P[i]]);
                 b1 = std::min(b1, copt[P[i + 1]] + copt[s ^ P[i + 1]]);
@@ -451,12 +451,12 @@ private:
             copt[s] = sc[s] <= max_leaf && leaf_cost <= split ? leaf_cost : split;
         }
         // the split of s that reaches copt (the first in table order)
-        auto part_of = [&](int s) {
+        auto part_of = [&](unsigned s) {
             const std::uint8_t* P = tab.p.data() + tab.begin[s];
-            const int np = tab.begin[s + 1] - tab.begin[s];
+            const unsigned np = unsigned(tab.begin[s + 1]) - tab.begin[s];
             float best = kInf;
-            int bp = P[0];
-            for (int i = 0; i < np; ++i) {
+            unsigned bp = P[0];
+            for (unsigned i = 0; i < np; ++i) {
                 const float c = copt[P[i]] + copt[s ^ P[i]];
                 if (c < best) {
                     best = c;
@@ -467,16 +467,16 @@ private:
         };
         if (!(copt[S - 1] < cost_[v] * (1.0f - 1e-6f))) return false;
         // rebuild: v keeps its place; the opened inner nodes are reused
-        int used = 0;
-        auto build = [&](auto&& self, int s, std::uint32_t into) -> void {
-            const int ps = part_of(s);
-            const int halves[2] = {ps, s ^ ps};
+        unsigned used = 0;
+        auto build = [&](auto&& self, unsigned s, std::uint32_t into) -> void {
+            const unsigned ps = part_of(s);
+            const unsigned halves[2] = {ps, s ^ ps};
             auto& k = kid_[into - n_];
-            for (int h = 0; h < 2; ++h) {
-                const int q = halves[h];
+            for (unsigned h = 0; h < 2; ++h) {
+                const unsigned q = halves[h];
                 std::uint32_t id;
                 if ((q & (q - 1)) == 0) {
-                    id = leaf[std::countr_zero(static_cast<unsigned>(q))];
+                    id = leaf[static_cast<unsigned>(std::countr_zero(q))];
                 } else {
                     id = inner_ids[used++];
                     flags_[id] = kFresh | kPending;
@@ -521,7 +521,7 @@ private:
                 continue;
             }
             st.push_back({x, true});
-            for (int side = 1; side >= 0; --side) {
+            for (std::size_t side : {1u, 0u}) {
                 const std::uint32_t c = kid_[x - n_][side];
                 if (inner(c) && (flags_[c] & kPending)) st.push_back({c, false});
             }

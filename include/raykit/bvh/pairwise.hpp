@@ -283,7 +283,7 @@ private:
 
         bool is_alive(std::uint32_t s) const noexcept {
             const std::uint32_t leaf = leaf_of[s];
-            return (alive[leaf] >> (s - tree[leaf].kid)) & 1u;
+            return (static_cast<unsigned>(alive[leaf]) >> (s - tree[leaf].kid)) & 1u;
         }
 
         void remove(std::uint32_t s) noexcept {
@@ -293,7 +293,7 @@ private:
             alive[k] = mask;
             if (tree[k].min_elem != e) return;
             std::uint32_t mn = kNone;
-            for (; mask; mask &= mask - 1) mn = std::min(mn, elem[first + std::countr_zero(mask)]);
+            for (; mask; mask &= mask - 1) mn = std::min(mn, elem[first + static_cast<unsigned>(std::countr_zero(mask))]);
             tree[k].min_elem = mn;
             for (k = tree[k].parent; k != kNone; k = tree[k].parent) {
                 const std::uint32_t v = std::min(tree[tree[k].kid].min_elem, tree[tree[k].kid + 1].min_elem);
@@ -321,7 +321,7 @@ private:
             auto scan = [&](std::uint32_t k) {
                 const std::uint32_t base = tree[k].kid;
                 for (Mask mask = alive[k]; mask; mask &= mask - 1) {
-                    const std::uint32_t s = base + std::countr_zero(mask);
+                    const std::uint32_t s = base + static_cast<std::uint32_t>(std::countr_zero(mask));
                     const double d = area ? merged_area(qb, pb[s]) : centre_dist(qc, pc[s]);
                     const std::uint32_t e = elem[s];
                     if (d < best.d || (d == best.d && e < best.e)) best = {d, e, s};

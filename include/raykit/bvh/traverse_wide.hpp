@@ -35,10 +35,14 @@
 #if (defined(__SSE2__) || defined(_M_X64)) && !defined(RAYKIT_NO_SIMD)
 #include <emmintrin.h>
 #define RAYKIT_WIDE_SSE 1
+#else
+#define RAYKIT_WIDE_SSE 0
 #endif
 #if defined(__AVX__) && !defined(RAYKIT_NO_SIMD)
 #include <immintrin.h>
 #define RAYKIT_WIDE_AVX 1
+#else
+#define RAYKIT_WIDE_AVX 0
 #endif
 
 namespace raykit {
@@ -159,7 +163,7 @@ RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax,
         float t;
     };
     constexpr int kStack = (W - 1) * RAYKIT_BVH_MAX_DEPTH + 1;
-    Entry stack[kStack];
+    Entry stack[std::size_t(kStack)];
     int sp = 0;
     Entry cur{0, 0, 0.0f};
     bool found = false;
@@ -167,7 +171,7 @@ RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax,
         if (cur.count == 0) {
             if constexpr (!std::is_same_v<Stats, std::nullptr_t>) ++stats->nodes;
             const WideNodeT<W>& n = nodes[cur.index];
-            alignas(32) float td[W];
+            alignas(32) float td[std::size_t(W)];
             unsigned mask = wr.test(n, ray.tmin, tmax, td);
             // One multi-way branch on the number of entered children (random
             // rays make every such branch unpredictable, so take one, not three).
@@ -211,7 +215,7 @@ RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax,
                             throw std::length_error("raykit::traverse: wide tree deeper than RAYKIT_BVH_MAX_DEPTH");
                         // three or more: insertion sort by entry distance (stable), push far
                         // to near
-                        Entry e[W];
+                        Entry e[std::size_t(W)];
                         int k = 0;
                         do {
                             const int i = std::countr_zero(mask);

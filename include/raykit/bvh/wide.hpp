@@ -45,9 +45,9 @@ struct alignas(64) WideNodeT {
     static_assert(W == 4 || W == 8, "wide nodes have 4 or 8 children");
     static constexpr int kWidth = W;
     /// Planes as [axis*2 + (0 = lo, 1 = hi)][child].
-    float planes[6][kWidth];
-    std::uint32_t index[kWidth];  ///< inner child: WideNode index; leaf: first prim_ids slot
-    std::uint32_t count[kWidth];  ///< 0: inner child (or unused slot); > 0: leaf primitive count
+    float planes[6][std::size_t(kWidth)];
+    std::uint32_t index[std::size_t(kWidth)];  ///< inner child: WideNode index; leaf: first prim_ids slot
+    std::uint32_t count[std::size_t(kWidth)];  ///< 0: inner child (or unused slot); > 0: leaf primitive count
 
     bool is_leaf(int i) const noexcept { return count[i] != 0; }
     /// An unused slot: no leaf, no inner child (inner children are never node 0).
@@ -223,7 +223,7 @@ private:
             const Task task = todo.back();
             todo.pop_back();
             // open the children of largest area until 4 or only leaves
-            std::uint32_t kids[W + 1];
+            std::uint32_t kids[std::size_t(W) + 1];
             int k = 0;
             const Node& b = bvh.nodes[task.binary];
             check(b.index + 1);

@@ -16,10 +16,14 @@
 #if defined(__SSE4_1__) && !defined(RAYKIT_NO_SIMD)
 #include <smmintrin.h>
 #define RAYKIT_SLAB_SSE 1
+#else
+#define RAYKIT_SLAB_SSE 0
 #endif
 #if defined(__AVX__) && !defined(RAYKIT_NO_SIMD)
 #include <immintrin.h>
 #define RAYKIT_SLAB_AVX 1
+#else
+#define RAYKIT_SLAB_AVX 0
 #endif
 
 namespace raykit {

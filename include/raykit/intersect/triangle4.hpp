@@ -37,6 +37,8 @@
 #if defined(__AVX__) && !defined(RAYKIT_NO_SIMD) && (defined(__FMA__) || !RAYKIT_FAST_FMA)
 #include <immintrin.h>
 #define RAYKIT_TRI4_AVX 1
+#else
+#define RAYKIT_TRI4_AVX 0
 #endif
 
 namespace raykit {

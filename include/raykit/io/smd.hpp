@@ -393,7 +393,8 @@ public:
         m.mesh.material_ids = std::move(material_ids_);
         m.weights.resize(nv);
         for (std::size_t v = 0; v < nv; ++v) {
-            m.weights[v].links.assign(links_.begin() + link_offsets_[v], links_.begin() + link_offsets_[v + 1]);
+            m.weights[v].links.assign(links_.begin() + static_cast<std::ptrdiff_t>(link_offsets_[v]),
+                                      links_.begin() + static_cast<std::ptrdiff_t>(link_offsets_[v + 1]));
         }
         SmdTextureFinder textures(base_);
         for (std::size_t i = 0; i < material_names_.size(); ++i) {
@@ -675,8 +676,8 @@ private:
             }
             listed[ub] = key;
             BonePose pose;
-            for (int k = 0; k < 3; ++k) pose.position[k] = number(toks_[1 + k], "skeleton");
-            for (int k = 0; k < 3; ++k) pose.rotation[k] = number(toks_[4 + k], "skeleton");
+            for (int k = 0; k < 3; ++k) pose.position[k] = number(toks_[std::size_t(1 + k)], "skeleton");
+            for (int k = 0; k < 3; ++k) pose.rotation[k] = number(toks_[std::size_t(4 + k)], "skeleton");
             if (key == 1) {
                 in_first[ub] = 1;
                 first_[ub] = pose;
@@ -773,7 +774,7 @@ private:
         }
         const std::uint32_t parent = bone_field(toks_[0], "parent bone");
         float f[8];
-        for (int k = 0; k < 8; ++k) f[k] = number(toks_[1 + k], "vertex");
+        for (std::size_t k = 0; k < 8; ++k) f[k] = number(toks_[1 + k], "vertex");
         cur_links_.clear();
         std::int64_t nlinks = 0;
         if (toks_.size() > 9) {

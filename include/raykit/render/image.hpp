@@ -202,17 +202,22 @@ struct PngOptions {
 /// 8-bit interleaved RGB or RGBA of `img` (top row first), encoded as `o` says.
 inline std::vector<std::uint8_t> to_bytes(const Image& img, const PngOptions& o = {}) {
     const int comp = o.alpha ? 4 : 3;
-    std::vector<std::uint8_t> out(img.pixels.size() * std::size_t(comp));
+    const auto stride = static_cast<std::size_t>(comp);
+    std::vector<std::uint8_t> out(img.pixels.size() * stride);
     for (std::size_t i = 0; i < img.pixels.size(); ++i) {
         const vec4& p = img.pixels[i];
-        for (int c = 0; c < 3; ++c)
-            out[i * comp + c] = o.srgb ? linear_to_srgb8(p[c]) : detail::to_byte(p[c]);
-        if (o.alpha) out[i * comp + 3] = detail::to_byte(p.w);
+        for (std::size_t c = 0; c < 3; ++c)
+            out[i * stride + c] = o.srgb ? linear_to_srgb8(p[int(c)]) : detail::to_byte(p[int(c)]);
+        if (o.alpha) out[i * stride + 3] = detail::to_byte(p.w);
     }
     return out;
 }
 
-/// Writes `img` as PNG. Throws std::runtime_error for an empty image or a write failure.
+/// Writes `img` as PNG. Pixels are taken as linear values and, by default, encoded with the
+/// sRGB curve, as a display expects rendered radiance; an image whose values are meant as
+/// they are (depth, normals as colours, masks, heat maps) is written with PngOptions{.srgb =
+/// false}, or it looks washed out. Throws std::runtime_error for an empty image or a write
+/// failure.
 inline void write_png(const Image& img, const std::filesystem::path& file, const PngOptions& o = {}) {
     if (img.empty() || img.width == 0 || img.height == 0)
         throw std::runtime_error("raykit::write_png: " + file.string() + ": empty image");
@@ -261,7 +266,7 @@ inline void write_pfm(const Image& img, const std::filesystem::path& file) {
                 unsigned char b[4];
                 std::memcpy(b, &v, 4);
                 if (!le) std::swap(b[0], b[3]), std::swap(b[1], b[2]);
-                std::memcpy(&row[(std::size_t(x) * 3 + c) * 4], b, 4);
+                std::memcpy(&row[(std::size_t(x) * 3 + std::size_t(c)) * 4], b, 4);
             }
         out.write(reinterpret_cast<const char*>(row.data()), std::streamsize(row.size()));
     }
@@ -296,14 +301,14 @@ inline Image read_pfm(const std::filesystem::path& file, const ImageLimits& lim 
     const bool file_le = scale < 0.0;
     const bool swap = file_le != detail::host_is_little_endian();
     Image img(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h));
-    std::vector<unsigned char> row(std::size_t(w) * comp * 4);
+    std::vector<unsigned char> row(std::size_t(w) * std::size_t(comp) * 4);
     for (long long yy = 0; yy < h; ++yy) {
         if (!in.read(reinterpret_cast<char*>(row.data()), std::streamsize(row.size()))) throw fail("truncated data");
         const auto y = std::uint32_t(h - 1 - yy);
         for (long long x = 0; x < w; ++x) {
             vec4 p(0.0f, 0.0f, 0.0f, 1.0f);
             for (int c = 0; c < comp; ++c) {
-                unsigned char* b = &row[(std::size_t(x) * comp + c) * 4];
+                unsigned char* b = &row[(std::size_t(x) * std::size_t(comp) + std::size_t(c)) * 4];
                 if (swap) std::swap(b[0], b[3]), std::swap(b[1], b[2]);
                 float v;
                 std::memcpy(&v, b, 4);

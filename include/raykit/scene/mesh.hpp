@@ -62,6 +62,8 @@ struct Mesh {
 
     std::size_t triangle_count() const noexcept { return triangles.size(); }
     std::size_t vertex_count() const noexcept { return positions.size(); }
+    /// Bounds of the finite triangles (MeshView::bounds()).
+    AABB bounds() const noexcept;
 };
 
 /// Non-owning view of the geometry a tracer needs.
@@ -73,6 +75,9 @@ struct MeshView {
     MeshView(std::span<const vec3> p, std::span<const Triangle> t) : positions(p), triangles(t) {}
     MeshView(const Mesh& m) : positions(m.positions), triangles(m.triangles) {}  // NOLINT implicit
 
+    std::size_t triangle_count() const noexcept { return triangles.size(); }
+    std::size_t vertex_count() const noexcept { return positions.size(); }
+    /// triangle_count(), the container-style name the traversal code uses.
     std::size_t size() const noexcept { return triangles.size(); }
     const vec3& vertex(std::size_t tri, int corner) const noexcept {
         return positions[triangles[tri].v[corner]];
@@ -88,6 +93,15 @@ struct MeshView {
         }
         return b;
     }
+    /// Bounds of all triangles whose vertices are finite (what a tree over them encloses);
+    /// empty for a mesh without such triangles.
+    AABB bounds() const noexcept {
+        AABB b;
+        for (std::size_t t = 0; t < triangles.size(); ++t) b.grow(bounds(t));
+        return b;
+    }
 };
+
+inline AABB Mesh::bounds() const noexcept { return MeshView(*this).bounds(); }
 
 }  // namespace raykit
