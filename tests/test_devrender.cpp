@@ -872,11 +872,14 @@ TEST(DeviceRender, DynamicSceneMovedAndRenderedOnTheDeviceMatchesTheCpu) {
             const Diff d = compare(cpu, gpu);
             EXPECT_GE(d.fraction_ok(), 0.999) << label << ": " << d.bad << " of " << d.total
                                               << " pixels differ by more than 2/255, max diff " << d.worst;
-            if (k == ShaderKind::debug_cost) EXPECT_EQ(d.worst, 0.0f) << label;
+            if (k == ShaderKind::debug_cost) {
+                EXPECT_EQ(d.worst, 0.0f) << label;
+            }
             EXPECT_GE(distinct_colours(gpu), 4u) << label;
             if (k == ShaderKind::whitted && frame == 0) first = gpu;
-            if (k == ShaderKind::whitted && frame == 2)  // the comparison sees the motion
+            if (k == ShaderKind::whitted && frame == 2) {  // the comparison sees the motion
                 EXPECT_LT(compare(first, gpu).fraction_ok(), 0.95);
+            }
         }
     }
     EXPECT_EQ(ds.launches().vertex, 3u);
