@@ -10,8 +10,14 @@
 // --------------------------------------------------------
 //  whitted ("whitted")   Whitted-style ray tracing. At each hit:
 //      colour = Ke + (1 - transparency) · (ambient · base + Σ_lights visible · base · max(0, N·L) · Lc)
-//                  + Σ_lights visible · Ks · max(0, N·H)^Ns · Lc
+//                  + Σ_lights visible · F(L·H) · (Ns + 8) / 8 · max(0, N·H)^Ns · max(0, N·L) · Lc
 //      base = Kd · map_Kd(uv) (linear), N the shading normal, H = normalize(L + V) (Blinn-Phong),
+//      F(x) = Ks + (1 - Ks)(1 - x)^5 (Schlick's Fresnel, Ks as the reflectance at normal
+//      incidence). The lobe is the energy-normalised Blinn-Phong one, (Ns + 8) / (8π) ·
+//      (N·H)^Ns, in the units of the diffuse term (base · N·L · Lc is Lambert's base / π times
+//      π · Lc), so a material reflects about Ks of the light whatever its Ns, and more at grazing
+//      angles; the unnormalised Ks · (N·H)^Ns used before had no N·L and no Fresnel term
+//      (docs/whitted_specular.png compares them). Materials with Ks = 0 have no specular.
 //      "visible" = a shadow ray (any-hit) from the offset hit point to the light is unblocked
 //      (ShadeSettings::shadows). Lights have no distance falloff. The ambient term uses the
 //      diffuse colour (MTL Ka is ignored: exporters routinely write Ka 1 1 1). Then, while the
@@ -104,10 +110,11 @@ struct WhittedShader {
                 const float nl = glm::dot(s.ns, ldir);
                 if (!(nl > 0.0f) || !(glm::dot(s.ng, ldir) > 0.0f)) continue;
                 vec3 c = opaque * (s.base * (nl * l.color));
-                if (want_spec) {
+                if (want_spec) {  // normalised Blinn-Phong, Fresnel-weighted (header comment)
                     const vec3 hv = glm::normalize(ldir - d);
                     const float nh = std::max(0.0f, glm::dot(s.ns, hv));
-                    c += m.ks * (std::pow(nh, m.ns) * l.color);
+                    const float lh = std::max(0.0f, glm::dot(ldir, hv));
+                    c += detail::schlick(m.ks, lh) * (((m.ns + 8.0f) * 0.125f * std::pow(nh, m.ns) * nl) * l.color);
                 }
                 c *= w;
                 if (set.shadows) ctx.emit_shadow(org, ldir, tmax, c);

@@ -25,7 +25,14 @@ RK_INLINE float rk_fresnel(float cos_i, float eta, float* cos_t) {
     return 0.5f * (rs * rs + rp * rp);
 }
 
-/* Whitted shading, the twin of the CPU's ShaderKind::whitted (render/shade.hpp). */
+/* Schlick's approximation with normal-incidence reflectance f0 (raykit::detail::schlick). */
+RK_INLINE float3 rk_schlick(float3 f0, float cos_i) {
+    const float m = clamp(1.0f - cos_i, 0.0f, 1.0f);
+    const float m5 = m * m * m * m * m;
+    return f0 + ((float3)(1.0f) - f0) * m5;
+}
+
+/* Whitted shading, the twin of the CPU's WhittedShader (render/shaders.hpp). */
 void rk_whitted(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_surface* s, rk_whitted_params p) {
     const float3 w = rk_f3(path->weight);
     if (hit->prim == RK_INVALID) {
@@ -53,7 +60,8 @@ void rk_whitted(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const r
             if (want_spec) {
                 const float3 hv = normalize(ldir - d);
                 const float nh = fmax(0.0f, dot(s->ns, hv));
-                c += ks * (pow(nh, m.ns) * lc);
+                const float lh = fmax(0.0f, dot(ldir, hv));
+                c += rk_schlick(ks, lh) * (((m.ns + 8.0f) * 0.125f * pow(nh, m.ns) * nl) * lc);
             }
             c *= w;
             if (ctx->set.shadows) rk_emit_shadow(ctx, org, ldir, tmax, c);
@@ -63,11 +71,7 @@ void rk_whitted(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const r
     if (path->depth >= ctx->set.max_depth) return;
     const float cos_i = fmax(0.0f, -dot(d, s->ns));
     float3 refl = rk_f3(m.mirror);
-    if (m.fresnel_mirror && rk_max3(refl) > 0.0f) {
-        const float mm = clamp(1.0f - cos_i, 0.0f, 1.0f);
-        const float m5 = mm * mm * mm * mm * mm;
-        refl = refl + ((float3)(1.0f) - refl) * m5;
-    }
+    if (m.fresnel_mirror && rk_max3(refl) > 0.0f) refl = rk_schlick(refl, cos_i);
     float trans = 0.0f;
     float3 tdir = (float3)(0.0f);
     if (m.transparency > 0.0f) {
