@@ -112,11 +112,19 @@ void check_model(rcl::Device& dev, const SmdModel& model, const SmdSkeletonAnim*
             EXPECT_EQ(w.position, cpu_p[i]);
         }
         // Refit after skinning: every box encloses its (device-skinned) triangles.
-        Bvh tree = scene.objects()[body].bvh;
-        const std::vector<Node> dn = ds.nodes(body);
-        tree.nodes.assign(dn.begin(), dn.end());
+        // (the device tree's nodes 1.. are a WideBvh8 with inner indices + 1, cl/device_tree.hpp)
+        const std::vector<raykit::cl::DeviceNode> dn = ds.nodes(body);
+        ASSERT_GE(dn.size(), 2u);
+        WideBvhT<raykit::cl::kDeviceWidth> tree;
+        tree.prim_ids = raykit::cl::device_tree(scene.objects()[body].blocks).prims;
+        for (std::size_t i = 1; i < dn.size(); ++i) {
+            auto n = dn[i];
+            for (int c = 0; c < raykit::cl::kDeviceWidth; ++c)
+                if (n.count[c] == 0 && !n.unused(c)) --n.index[c];
+            tree.nodes.push_back(n);
+        }
         const std::vector<AABB> boxes = triangle_boxes(dev_p, model.mesh);
-        EXPECT_EQ(validate(tree, boxes), "");
+        EXPECT_EQ(tree.validate(boxes), "");
         // The top level holds the refitted root.
         const AABB root = ds.root_boxes()[body];
         for (const AABB& b : boxes) {

@@ -5,9 +5,10 @@
 //   std::vector<std::uint32_t> occ = tracer.any(rays);      // 1 = occluded, 0 = free
 //
 // The kernels (kernels/raykit/kernels/trace.hpp) are the twins of
-// scene/trace.hpp with the Watertight test: the same traversal order, the
-// same tie rule (smaller t, then smaller triangle index), a stack of
-// RAYKIT_BVH_MAX_DEPTH entries. On a device with cl_khr_fp64 the edge
+// scene/trace.hpp's closest_hit / any_hit over the WideBvh8 collapsed from the
+// given tree, with the Watertight test: the same traversal order, the same tie
+// rule (smaller t, then smaller triangle index), the same stack bound; the
+// triangles are read in leaf order (cl/device_tree.hpp). On a device with cl_khr_fp64 the edge
 // functions are evaluated in double like the CPU's; the two expressions a
 // compiler may fuse into fma are fused on the device exactly when the host
 // build fuses them (RAYKIT_FAST_FMA, cl/layout.hpp host_float_config()); division is
@@ -28,6 +29,7 @@
 #include <vector>
 
 #include "raykit/cl/buffer.hpp"
+#include "raykit/cl/device_tree.hpp"
 #include "raykit/cl/layout.hpp"
 #include "raykit/cl/program.hpp"
 #include "raykit/kernels/camera.hpp"
@@ -65,40 +67,49 @@ inline void camera_rays(Device& dev, ::cl::Kernel& k, const CameraFrame& frame, 
 
 class MeshTracer {
 public:
-    /// Uploads the mesh (positions, triangles) and the tree; `extra_options`
-    /// go to trace_program().
+    /// Uploads the tree in the device's form (device_tree(): 8-wide nodes) with the mesh's
+    /// triangles in leaf order (gather_leaf_positions); `extra_options` go to trace_program().
     MeshTracer(Device& dev, const MeshView& mesh, const Bvh& bvh, const std::string& extra_options = {}) : dev_(&dev) {
-        if (bvh.prim_ids.size() != mesh.size())
-            throw std::invalid_argument("raykit::cl::MeshTracer: tree and mesh differ in triangle count");
-        if (mesh.positions.size() >= 0x55555555u || bvh.nodes.size() >= 0xFFFFFFFFu)
+        if (mesh.positions.size() >= 0x55555555u || mesh.size() >= 0x55555555u)
             throw std::length_error("raykit::cl::MeshTracer: mesh too large for 32-bit indices");
         program_ = trace_program(dev, extra_options);
         k_closest_ = program_.kernel("rk_mesh_closest");
         k_any_ = program_.kernel("rk_mesh_any");
         k_camera_ = program_.kernel("rk_camera_rays");
-        positions_ = Buffer<float>(dev, float_span(mesh.positions), CL_MEM_READ_WRITE);
-        triangles_ = Buffer<Triangle>(dev, mesh.triangles, CL_MEM_READ_ONLY);
-        update_tree(bvh);
+        triangles_.assign(mesh.triangles.begin(), mesh.triangles.end());
+        vertex_count_ = mesh.positions.size();
+        update_tree(mesh, bvh);
     }
 
-    /// Replaces the tree's nodes (e.g. after a refit; same prim_ids) or the whole tree.
-    void update_tree(const Bvh& bvh) {
-        nodes_ = Buffer<Node>(*dev_, std::span<const Node>(bvh.nodes.data(), bvh.nodes.size()), CL_MEM_READ_WRITE);
-        prim_ids_ = Buffer<std::uint32_t>(*dev_, bvh.prim_ids, CL_MEM_READ_ONLY);
-        node_count_ = static_cast<std::uint32_t>(bvh.nodes.size());
+    /// Replaces the tree (e.g. after a refit or a rebuild over `mesh`, the same triangles).
+    void update_tree(const MeshView& mesh, const Bvh& bvh) {
+        if (bvh.prim_ids.size() != mesh.size() || mesh.size() != triangles_.size())
+            throw std::invalid_argument("raykit::cl::MeshTracer: tree and mesh differ in triangle count");
+        DeviceTree tree = device_tree(bvh);
+        if (tree.nodes.size() >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::MeshTracer: tree too large");
+        nodes_ = Buffer<DeviceNode>(*dev_, tree.nodes, CL_MEM_READ_ONLY);
+        prim_ids_ = Buffer<std::uint32_t>(*dev_, tree.prims, CL_MEM_READ_ONLY);
+        prim_host_ = std::move(tree.prims);
+        node_count_ = static_cast<std::uint32_t>(tree.nodes.size());
+        std::vector<float> lp;
+        gather_leaf_positions(mesh, prim_host_, lp);
+        leaf_positions_ = Buffer<float>(*dev_, lp, CL_MEM_READ_ONLY);
     }
-    /// Replaces the vertex positions (same count).
+    /// Replaces the vertex positions (same count; the tree's boxes are not refitted):
+    /// re-gathers the leaf-ordered positions.
     void update_positions(std::span<const vec3> positions) {
-        if (positions.size() * 3 != positions_.size())
+        if (positions.size() != vertex_count_)
             throw std::invalid_argument("raykit::cl::MeshTracer::update_positions: vertex count changed");
-        positions_.write(*dev_, float_span(positions));
+        std::vector<float> lp;
+        gather_leaf_positions(MeshView(positions, triangles_), prim_host_, lp);
+        leaf_positions_.write(*dev_, std::span<const float>(lp));
     }
 
     /// Closest hits of rays[0..n) into hits (device-resident; asynchronous).
     void closest(const Buffer<Ray>& rays, Buffer<Hit>& hits, std::size_t n) {
         check_count(rays, n);
         hits.reserve(*dev_, n);
-        set_args(k_closest_, nodes_, prim_ids_, triangles_, positions_, node_count_, rays, hits,
+        set_args(k_closest_, nodes_, prim_ids_, leaf_positions_, node_count_, rays, hits,
                  static_cast<std::uint32_t>(n));
         launches_ += launch(dev_->queue(), k_closest_, n, kTraceGroupSize);
     }
@@ -106,7 +117,7 @@ public:
     void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
         check_count(rays, n);
         occluded.reserve(*dev_, n);
-        set_args(k_any_, nodes_, prim_ids_, triangles_, positions_, node_count_, rays, occluded,
+        set_args(k_any_, nodes_, prim_ids_, leaf_positions_, node_count_, rays, occluded,
                  static_cast<std::uint32_t>(n));
         launches_ += launch(dev_->queue(), k_any_, n, kTraceGroupSize);
     }
@@ -134,8 +145,10 @@ public:
     const Program& program() const noexcept { return program_; }
     /// Kernel launches so far.
     std::size_t launches() const noexcept { return launches_; }
-    Buffer<float>& positions() noexcept { return positions_; }
-    Buffer<Node>& nodes() noexcept { return nodes_; }
+    /// The tree's nodes (device_tree()).
+    Buffer<DeviceNode>& nodes() noexcept { return nodes_; }
+    /// The triangles' vertices in leaf order (9 floats per prim_ids slot).
+    Buffer<float>& leaf_positions() noexcept { return leaf_positions_; }
 
 private:
     static void check_count(const Buffer<Ray>& rays, std::size_t n) {
@@ -146,10 +159,12 @@ private:
     Device* dev_;
     Program program_;
     ::cl::Kernel k_closest_, k_any_, k_camera_;
-    Buffer<float> positions_;
-    Buffer<Triangle> triangles_;
-    Buffer<Node> nodes_;
+    std::vector<Triangle> triangles_;         ///< host copy: update_positions re-gathers
+    std::vector<std::uint32_t> prim_host_;    ///< host copy of the tree's prim_ids
+    std::size_t vertex_count_ = 0;
+    Buffer<DeviceNode> nodes_;
     Buffer<std::uint32_t> prim_ids_;
+    Buffer<float> leaf_positions_;
     std::uint32_t node_count_ = 0;
     std::size_t launches_ = 0;
 };

@@ -53,6 +53,8 @@ typedef struct {
     float inv[3];
     int nearo[3];
     int faro[3];
+    int wnear[3];  /* the same for a wide node: offsets of the near / far plane rows of rk_wnode */
+    int wfar[3];
     float tmin;
 } rk_slab_ray;
 
@@ -64,6 +66,8 @@ RK_INLINE rk_slab_ray rk_slab_prepare(const float org[3], const float dir[3], fl
         const int neg = signbit(dir[a]) ? 1 : 0;
         s.nearo[a] = neg ? 3 + a : a;
         s.faro[a] = neg ? a : 3 + a;
+        s.wnear[a] = (2 * a + neg) * RK_WIDTH;
+        s.wfar[a] = (2 * a + 1 - neg) * RK_WIDTH;
     }
     s.tmin = tmin;
     return s;
@@ -81,6 +85,44 @@ RK_INLINE bool rk_slab(const rk_slab_ray* s, __global const rk_node* n, float tm
     }
     *tentry = t0;
     return t0 <= t1;
+}
+
+/* The RK_WIDTH children of a wide node at once (raykit::WideSlabRay::test, bvh/traverse_wide.hpp):
+   per child the same (plane − origin)·(1/d) distances, NaN candidates never deciding, the axes
+   in the CPU's order (z, y, x), the exit widened once after the minimum. Writes the entry
+   distances to td[0 .. RK_WIDTH) and returns a bit per child entered. */
+#if RK_WIDTH == 8
+#define RK_FW float8
+#define RK_IW int8
+#define RK_VLOADW vload8
+#define RK_VSTOREW vstore8
+#elif RK_WIDTH == 4
+#define RK_FW float4
+#define RK_IW int4
+#define RK_VLOADW vload4
+#define RK_VSTOREW vstore4
+#else
+#error "RK_WIDTH must be 4 or 8"
+#endif
+RK_INLINE uint rk_wslab(const rk_slab_ray* s, __global const rk_wnode* n, float tmax, float* td) {
+    __global const float* f = (__global const float*)n;
+    RK_FW t0 = (RK_FW)(s->tmin), t1 = (RK_FW)(tmax);
+    for (int a = 2; a >= 0; --a) {
+        const RK_FW tn = (RK_VLOADW(0, f + s->wnear[a]) - s->org[a]) * s->inv[a];
+        const RK_FW tf = (RK_VLOADW(0, f + s->wfar[a]) - s->org[a]) * s->inv[a];
+        t0 = select(t0, tn, isgreater(tn, t0));
+        t1 = select(t1, tf, isless(tf, t1));
+    }
+    t1 = t1 * RK_SLAB_EXIT_SCALE;
+    RK_VSTOREW(t0, 0, td);
+#if RK_WIDTH == 8
+    const int8 h = islessequal(t0, t1) & (int8)(1, 2, 4, 8, 16, 32, 64, 128);
+    const int4 h4 = h.lo | h.hi;
+#else
+    const int4 h4 = islessequal(t0, t1) & (int4)(1, 2, 4, 8);
+#endif
+    const int2 h2 = h4.lo | h4.hi;
+    return (uint)(h2.x | h2.y);
 }
 
 /* raykit::Watertight */

@@ -58,22 +58,22 @@ typedef struct {
 #endif
 
 /* What a walk runs over: the scene's concatenated object arrays and its top
-   level, or (mesh != 0) the one object `mesh_object` with no top level. */
+   level, or (mesh != 0) the one object `mesh_object` with no top level.
+   leaf_pos: per prim_ids slot the triangle's three vertices (9 floats). */
 typedef struct {
     __global const rk_node* top;
     __global const uint* top_ids;
     __global const rk_instance* instances;
     __global const rk_object* objects;
-    __global const rk_node* nodes;
+    __global const rk_wnode* nodes;
     __global const uint* prim_ids;
-    __global const rk_triangle* tris;
-    __global const float* pos;
+    __global const float* leaf_pos;
     uint top_count;
     int mesh;
     rk_object mesh_object;
 } rk_scene;
 
-/* One inner node: slab-tests both children of the node whose first child is
+/* One binary node of the top level: slab-tests both children of the node whose first child is
    `index` (in `base`); enters the nearer one hit (*cur) and pushes the
    farther one with its entry distance. Returns 1 when a child is entered, 0
    when neither is (pop next), -1 when the stack is full (*sp == limit). */
@@ -129,9 +129,11 @@ RK_INLINE rk_ray rk_object_ray(__global const rk_instance* in, const rk_ray* r, 
     return o;
 }
 
-/* Stack entries of a walk: the top level's (at most RK_MAX_DEPTH) below the current object's
-   (at most RK_MAX_DEPTH). */
-#define RK_WALK_STACK (2 * RK_MAX_DEPTH)
+/* The object's stack: at most RK_WIDTH - 1 entries per wide level (raykit::traverse's bound). */
+#define RK_WSTACK ((RK_WIDTH - 1) * RK_MAX_DEPTH + 1)
+
+/* The lowest set bit's index (ctz is OpenCL C 2.0). */
+RK_INLINE int rk_lowest_bit(const uint m) { return 31 - (int)clz(m & (0u - m)); }
 
 /* Closest hit (any == 0: *best improved in place, inst set; true when it was)
    or any hit (any != 0: true when something blocks) of `r` in [r->tmin, r->tmax]. */
@@ -139,9 +141,11 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
                        uint* steps) {
     if (steps) *steps = 0u;
     float tmax = r->tmax;
-    uint st_node[RK_WALK_STACK];
-    float st_t[RK_WALK_STACK];
-    int sp = 0;                 /* the top level's entries, then the current object's */
+    uint st_node[RK_MAX_DEPTH];  /* the top level's entries */
+    float st_t[RK_MAX_DEPTH];
+    uint ws_index[RK_WSTACK], ws_count[RK_WSTACK];  /* the current object's entries */
+    float ws_t[RK_WSTACK];
+    int sp = 0;
     uint tcur = 0;              /* top-level node */
     uint leaf_k = 0, leaf_end = sc->mesh ? 1u : 0u;  /* instances of the top-level leaf still to walk */
     bool top_pending = !sc->mesh, found = false;
@@ -168,27 +172,69 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
             }
             ++leaf_k;
             if (ob.node_count == 0) continue;
-            __global const rk_node* restrict nodes = sc->nodes + ob.node_offset;
+            __global const rk_wnode* restrict nodes = sc->nodes + ob.node_offset;
             __global const uint* restrict prim_ids = sc->prim_ids + ob.prim_offset;
-            __global const rk_triangle* restrict tris = sc->tris + ob.triangle_offset;
-            __global const float* restrict pos = sc->pos + (size_t)3 * ob.vertex_offset;
+            __global const float* restrict lpos = sc->leaf_pos + (size_t)9 * ob.prim_offset;
             const rk_slab_ray s = mapped ? rk_slab_prepare(o.org, o.dir, o.tmin) : top_s;
             const rk_wt_ray w = rk_wt_prepare(o.org, o.dir);
-            float troot;
-            if (!rk_slab(&s, nodes, tmax, &troot)) continue;
-            const int floor = sp;  /* the object's stack entries start here */
-            uint cur = 0u;
+            /* raykit::traverse over a WideBvhT: node 0 holds the root box alone (its test is the
+               CPU's test of WideBvhT::bounds, not counted); entered children nearest first (ties
+               in slot order), the others pushed far to near; any hit pushes them in slot order. */
+            uint cidx = 0u, ccnt = 0u;
+            int wsp = 0;
             for (;;) {
-                __global const rk_node* n = nodes + cur;
-                const uint index = n->index, count = n->count;
-                if (steps) ++*steps;
-                if (count != 0) {
-                    for (uint k = index; k < index + count; ++k) {
-                        const uint p = prim_ids[k];
-                        const rk_triangle t = tris[p];
-                        const float3 p0 = vload3(t.v[0], pos), p1 = vload3(t.v[1], pos), p2 = vload3(t.v[2], pos);
+                if (ccnt == 0u) {
+                    __global const rk_wnode* n = nodes + cidx;
+                    if (steps && cidx != 0u) ++*steps;
+                    float td[RK_WIDTH];
+                    uint mask = rk_wslab(&s, n, tmax, td);
+                    if (mask) {
+                        if (wsp + RK_WIDTH - 1 > RK_WSTACK) return found;
+                        int i = rk_lowest_bit(mask);
+                        mask &= mask - 1u;
+                        if (any) {
+                            cidx = n->index[i];
+                            ccnt = n->count[i];
+                            while (mask) {
+                                i = rk_lowest_bit(mask);
+                                mask &= mask - 1u;
+                                ws_index[wsp] = n->index[i];
+                                ws_count[wsp] = n->count[i];
+                                ws_t[wsp] = td[i];
+                                ++wsp;
+                            }
+                            continue;
+                        }
+                        int e[RK_WIDTH];
+                        int k = 1;
+                        e[0] = i;
+                        while (mask) {  /* insertion sort by entry distance, stable */
+                            i = rk_lowest_bit(mask);
+                            mask &= mask - 1u;
+                            int j = k++;
+                            while (j > 0 && td[e[j - 1]] > td[i]) {
+                                e[j] = e[j - 1];
+                                --j;
+                            }
+                            e[j] = i;
+                        }
+                        for (int j = k - 1; j >= 1; --j) {
+                            ws_index[wsp] = n->index[e[j]];
+                            ws_count[wsp] = n->count[e[j]];
+                            ws_t[wsp] = td[e[j]];
+                            ++wsp;
+                        }
+                        cidx = n->index[e[0]];
+                        ccnt = n->count[e[0]];
+                        continue;
+                    }
+                } else {
+                    if (steps) ++*steps;
+                    for (uint k = cidx; k < cidx + ccnt; ++k) {
+                        const float3 p0 = vload3(3 * k, lpos), p1 = vload3(3 * k + 1, lpos), p2 = vload3(3 * k + 2, lpos);
                         float th, uh, vh;
                         if (!rk_wt_intersect(&w, p0, p1, p2, r->tmin, tmax, &th, &uh, &vh)) continue;
+                        const uint p = prim_ids[k];
                         /* Hit::closer_than against the best so far (th <= tmax = best->t when there is one) */
                         if (!any && !(th < best->t || inst < best->inst || (inst == best->inst && p < best->prim)))
                             continue;
@@ -204,12 +250,19 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
                         tmax = th;
                         found = true;
                     }
-                } else {
-                    const int step = rk_descend(&s, nodes, index, tmax, &cur, st_node, st_t, &sp, floor + RK_MAX_DEPTH);
-                    if (step < 0) return found;
-                    if (step > 0) continue;
                 }
-                if (!rk_pop(&cur, st_node, st_t, &sp, floor, tmax)) break;
+                /* the next entry still in front of tmax */
+                bool next = false;
+                while (wsp > 0) {
+                    --wsp;
+                    if (ws_t[wsp] <= tmax * RK_SLAB_EXIT_SCALE) {
+                        cidx = ws_index[wsp];
+                        ccnt = ws_count[wsp];
+                        next = true;
+                        break;
+                    }
+                }
+                if (!next) break;
             }
             continue;
         }
@@ -229,17 +282,16 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
     }
 }
 
-RK_INLINE rk_scene rk_mesh_scene(__global const rk_node* nodes, __global const uint* prim_ids,
-                                 __global const rk_triangle* tris, __global const float* pos, const uint node_count) {
+RK_INLINE rk_scene rk_mesh_scene(__global const rk_wnode* nodes, __global const uint* prim_ids,
+                                 __global const float* leaf_pos, const uint node_count) {
     rk_scene sc;
-    sc.top = nodes;
+    sc.top = 0;
     sc.top_ids = prim_ids;
     sc.instances = 0;
     sc.objects = 0;
     sc.nodes = nodes;
     sc.prim_ids = prim_ids;
-    sc.tris = tris;
-    sc.pos = pos;
+    sc.leaf_pos = leaf_pos;
     sc.top_count = 0u;
     sc.mesh = 1;
     rk_object ob = {0u, node_count, 0u, 0u, 0u, 0u, 0u, 0u};
@@ -247,32 +299,33 @@ RK_INLINE rk_scene rk_mesh_scene(__global const rk_node* nodes, __global const u
     return sc;
 }
 
-/* The kernel parameters of a two-level scene, and the rk_scene made of them. */
+/* The kernel parameters of a two-level scene, and the rk_scene made of them (tris: for the
+   renderer's leaf filter; the walk reads leaf_pos). */
 #define RK_SCENE_PARAMS __global const rk_node* top, const uint top_count, __global const uint* top_ids, \
-    __global const rk_instance* instances, __global const rk_object* objects, __global const rk_node* nodes, \
-    __global const uint* prim_ids, __global const rk_triangle* tris, __global const float* pos
-#define RK_SCENE_MAKE(sc) const rk_scene sc = {top, top_ids, instances, objects, nodes, prim_ids, tris, pos, \
+    __global const rk_instance* instances, __global const rk_object* objects, __global const rk_wnode* nodes, \
+    __global const uint* prim_ids, __global const rk_triangle* tris, __global const float* leaf_pos
+#define RK_SCENE_MAKE(sc) const rk_scene sc = {top, top_ids, instances, objects, nodes, prim_ids, leaf_pos, \
     top_count, 0, {0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u}}
 
-__kernel void rk_mesh_closest(__global const rk_node* nodes, __global const uint* prim_ids,
-                              __global const rk_triangle* tris, __global const float* pos, const uint node_count,
+__kernel void rk_mesh_closest(__global const rk_wnode* nodes, __global const uint* prim_ids,
+                              __global const float* leaf_pos, const uint node_count,
                               __global const rk_ray* rays, __global rk_hit* hits, const uint n) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
     const rk_ray r = rays[i];
-    const rk_scene sc = rk_mesh_scene(nodes, prim_ids, tris, pos, node_count);
+    const rk_scene sc = rk_mesh_scene(nodes, prim_ids, leaf_pos, node_count);
     rk_hit h = rk_miss();
     rk_walk(&sc, &r, 0, &h, 0, 0);
     hits[i] = h;
 }
 
-__kernel void rk_mesh_any(__global const rk_node* nodes, __global const uint* prim_ids,
-                          __global const rk_triangle* tris, __global const float* pos, const uint node_count,
+__kernel void rk_mesh_any(__global const rk_wnode* nodes, __global const uint* prim_ids,
+                          __global const float* leaf_pos, const uint node_count,
                           __global const rk_ray* rays, __global uint* occluded, const uint n) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
     const rk_ray r = rays[i];
-    const rk_scene sc = rk_mesh_scene(nodes, prim_ids, tris, pos, node_count);
+    const rk_scene sc = rk_mesh_scene(nodes, prim_ids, leaf_pos, node_count);
     rk_hit h = rk_miss();
     occluded[i] = rk_walk(&sc, &r, 1, &h, 0, 0) ? 1u : 0u;
 }
