@@ -575,22 +575,21 @@ Agreement compare_scene(rcl::DeviceScene<rcl::WaveHook, rcl::ScaleHook>& ds, con
 
 using TestDeviceScene = rcl::DeviceScene<rcl::WaveHook, rcl::ScaleHook>;
 
-/// The device tree of object `o` equals device_tree() of the CPU's refitted BlockBvh8 bit for
-/// bit, and its leaf-ordered positions are the CPU mesh's triangles gathered in leaf order.
+/// The device tree of object `o` and its blocks equal device_tree() of the CPU's refitted
+/// BlockBvh8 bit for bit.
 template <class DS>
 void expect_nodes_equal(DS& ds, std::uint32_t o, const SceneObject& cpu, const char* what) {
     const std::vector<rcl::DeviceNode> dev = ds.nodes(o);
-    const rcl::DeviceTree cpu_tree = rcl::device_tree(cpu.blocks);
-    const std::vector<rcl::DeviceNode>& want = cpu_tree.nodes;
-    ASSERT_EQ(dev.size(), want.size()) << what;
+    const rcl::DeviceTree want = rcl::device_tree(cpu.blocks);
+    ASSERT_EQ(dev.size(), want.nodes.size()) << what;
     std::size_t differ = 0;
-    for (std::size_t i = 0; i < dev.size(); ++i) differ += std::memcmp(&dev[i], &want[i], sizeof(rcl::DeviceNode)) != 0;
+    for (std::size_t i = 0; i < dev.size(); ++i) differ += std::memcmp(&dev[i], &want.nodes[i], sizeof(rcl::DeviceNode)) != 0;
     EXPECT_EQ(differ, 0u) << what << ": nodes not bit-identical to the CPU refit, of " << dev.size();
-    std::vector<float> lp;
-    rcl::gather_leaf_positions(cpu.mesh, cpu_tree.prims, lp);
-    const std::vector<float> dlp = ds.object_leaf_positions(o);
-    ASSERT_EQ(dlp.size(), lp.size()) << what;
-    EXPECT_EQ(std::memcmp(dlp.data(), lp.data(), lp.size() * sizeof(float)), 0) << what << ": leaf positions differ";
+    const std::vector<TriangleBlock4> blocks = ds.blocks(o);
+    ASSERT_EQ(blocks.size(), want.blocks.size()) << what;
+    differ = 0;
+    for (std::size_t i = 0; i < blocks.size(); ++i) differ += std::memcmp(&blocks[i], &want.blocks[i], sizeof(TriangleBlock4)) != 0;
+    EXPECT_EQ(differ, 0u) << what << ": blocks not bit-identical to the CPU's, of " << blocks.size();
 }
 
 }  // namespace

@@ -10,8 +10,8 @@
 //     ds.camera_rays(cam.frame(), rays);  ds.closest(rays, hits, n);
 //
 // Upload: every object's tree in the device's form (device_tree() of its
-// BlockBvh8: the 8-wide tree the CPU walks, cl/device_tree.hpp), leaf slots, triangles,
-// positions, leaf-ordered positions (what the walk reads) and vertex records
+// BlockBvh8: the 8-wide tree and the 4-triangle blocks the CPU walks,
+// cl/device_tree.hpp), triangles, positions and vertex records
 // (rk_vertex: position, normal, uv — what the renderer shades with) go into
 // concatenated device arrays once, dynamic objects first. Static objects are
 // never written again. A dynamic object also gets its rest vertices; the
@@ -23,7 +23,7 @@
 //                 is computed from its rest copy;
 //   refit         when a vertex stage ran or set_positions() was called:
 //                 every dynamic tree, level-wise or one-pass (cl/refit.hpp),
-//                 its leaves re-gathering their leaf-ordered positions;
+//                 its leaves rewriting their blocks from the moved vertices;
 //   top level     dynamic root boxes gathered (one launch + one small read,
 //                 only after a refit), instance world boxes from the Scene's
 //                 transforms (transformed_box), the top-level tree built (or
@@ -44,6 +44,7 @@
 // DeviceScene is not thread-safe: use it from one thread at a time.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstddef>
@@ -109,15 +110,12 @@ public:
     // The arrays as kernels bind them (kernels/raykit/kernels/trace.hpp's RK_SCENE_PARAMS order).
     /// Every object's tree nodes (device_tree()), at its node_offset.
     const Buffer<DeviceNode>& nodes() const noexcept { return nodes_; }
-    /// Every object's leaf slots' triangles (DeviceTree::prims), at its prim_offset.
-    const Buffer<std::uint32_t>& prim_ids() const noexcept { return prim_ids_; }
+    /// Every object's leaves' triangle blocks (DeviceTree::blocks), at its block_offset.
+    const Buffer<TriangleBlock4>& blocks() const noexcept { return blocks_; }
     /// Every object's triangles (vertex indices relative to the object), at its triangle_offset.
     const Buffer<Triangle>& triangles() const noexcept { return triangles_; }
     /// Every object's current positions (3 floats each), at its vertex_offset.
     const Buffer<float>& positions() const noexcept { return positions_; }
-    /// Every object's triangles' current vertices in leaf order (9 floats per prim_ids slot),
-    /// at 9 · prim_offset: what the walk reads.
-    const Buffer<float>& leaf_positions() const noexcept { return leaf_positions_; }
     /// Every object's vertex records at its vertex_offset (moved ones as last moved).
     const Buffer<Vertex>& vertices() const noexcept { return vertices_; }
     /// One ObjectRecord per object, in object order.
@@ -148,10 +146,9 @@ protected:
     std::vector<AABB> roots_;
     bool fresh_ = false;
     Buffer<DeviceNode> nodes_;
-    Buffer<std::uint32_t> prim_ids_;
+    Buffer<TriangleBlock4> blocks_;
     Buffer<Triangle> triangles_;
     Buffer<float> positions_;
-    Buffer<float> leaf_positions_;
     Buffer<ObjectRecord> objects_;
     Buffer<Vertex> vertices_;  ///< every object's vertex records (at vertex_offset), moved ones included
     Bvh top_;
@@ -184,9 +181,9 @@ public:
         hook_of_.assign(objs.size(), kNoHook);
         params_.resize(objs.size());
         std::vector<DeviceNode> nodes;
-        std::vector<std::uint32_t> prim_ids;
+        std::vector<TriangleBlock4> blocks;
         std::vector<Triangle> tris;
-        std::vector<float> pos, leaf_pos;
+        std::vector<float> pos;
         std::vector<std::vector<DeviceNode>> dynamic_trees;
         std::vector<Vertex> verts, rest;
         std::vector<RefitTree> trees;
@@ -196,15 +193,13 @@ public:
             DeviceTree tree = device_tree(o.blocks);
             r.node_offset = checked(nodes.size());
             r.node_count = checked(tree.nodes.size());
-            r.prim_offset = checked(prim_ids.size());
+            r.block_offset = checked(blocks.size());
             r.triangle_offset = checked(tris.size());
             r.vertex_offset = checked(pos.size() / 3);
             r.vertex_count = checked(o.mesh.positions.size());
             r.triangle_count = checked(o.mesh.triangles.size());
             nodes.insert(nodes.end(), tree.nodes.begin(), tree.nodes.end());
-            prim_ids.insert(prim_ids.end(), tree.prims.begin(), tree.prims.end());
-            gather_leaf_positions(o.mesh, tree.prims, leaf_pos);
-            checked(leaf_pos.size());
+            blocks.insert(blocks.end(), tree.blocks.begin(), tree.blocks.end());
             tris.insert(tris.end(), o.mesh.triangles.begin(), o.mesh.triangles.end());
             for (const vec3& p : o.mesh.positions) pos.insert(pos.end(), {p.x, p.y, p.z});
             checked(pos.size() / 3);
@@ -228,8 +223,7 @@ public:
 
         for (std::size_t d = 0; d < trees.size(); ++d) trees[d].nodes = dynamic_trees[d];
         nodes_ = Buffer<DeviceNode>(dev, nodes);
-        leaf_positions_ = Buffer<float>(dev, leaf_pos);
-        prim_ids_ = Buffer<std::uint32_t>(dev, prim_ids, CL_MEM_READ_ONLY);
+        blocks_ = Buffer<TriangleBlock4>(dev, blocks);
         triangles_ = Buffer<Triangle>(dev, tris, CL_MEM_READ_ONLY);
         positions_ = Buffer<float>(dev, pos);
         objects_ = Buffer<ObjectRecord>(dev, records_, CL_MEM_READ_ONLY);
@@ -340,15 +334,15 @@ public:
     void closest(const Buffer<Ray>& rays, Buffer<Hit>& hits, std::size_t n) {
         prepare_trace(rays, n);
         hits.reserve(*dev_, n);
-        set_args(k_closest_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, prim_ids_, triangles_,
-                 leaf_positions_, rays, hits, static_cast<std::uint32_t>(n));
+        set_args(k_closest_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays,
+                 hits, static_cast<std::uint32_t>(n));
         launches_.trace += launch(dev_->queue(), k_closest_, n, kTraceGroupSize);
     }
     void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
         prepare_trace(rays, n);
         occluded.reserve(*dev_, n);
-        set_args(k_any_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, prim_ids_, triangles_,
-                 leaf_positions_, rays, occluded, static_cast<std::uint32_t>(n));
+        set_args(k_any_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays,
+                 occluded, static_cast<std::uint32_t>(n));
         launches_.trace += launch(dev_->queue(), k_any_, n, kTraceGroupSize);
     }
     std::vector<Hit> closest(std::span<const Ray> rays) {
@@ -399,11 +393,14 @@ public:
         if (!out.empty()) nodes_.read(*dev_, std::span<DeviceNode>(out), r.node_offset);
         return out;
     }
-    /// An object's current leaf-ordered positions (9 floats per prim_ids slot).
-    std::vector<float> object_leaf_positions(std::uint32_t object) {
+    /// An object's current triangle blocks (its tree's leaves).
+    std::vector<TriangleBlock4> blocks(std::uint32_t object) {
         const ObjectRecord& r = records_.at(object);
-        std::vector<float> out(std::size_t(r.triangle_count) * 9);
-        if (!out.empty()) leaf_positions_.read(*dev_, std::span<float>(out), std::size_t(r.prim_offset) * 9);
+        std::size_t end = blocks_.size();  // the next object's first block in the buffer (dynamic objects come first)
+        for (const ObjectRecord& o : records_)
+            if (o.block_offset > r.block_offset) end = std::min<std::size_t>(end, o.block_offset);
+        std::vector<TriangleBlock4> out(end - r.block_offset);
+        if (!out.empty()) blocks_.read(*dev_, std::span<TriangleBlock4>(out), r.block_offset);
         return out;
     }
     std::vector<Vertex> moved_vertices(std::uint32_t object) {
@@ -437,7 +434,7 @@ private:
     }
     void require_dynamic(std::uint32_t object, const char* what) const { (void)dynamic_slot(object, what); }
     RefitBuffers refit_buffers() {
-        return {&nodes_, &prim_ids_, &triangles_, &positions_, &leaf_positions_, &objects_};
+        return {&nodes_, &blocks_, &triangles_, &positions_, &objects_};
     }
 
     std::uint64_t used_hooks() const {

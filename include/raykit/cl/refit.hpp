@@ -5,8 +5,8 @@
 //
 // Both methods give boxes bit-identical to raykit::refit on the CPU (same
 // floats selected by the same min/max rules, see kernels/raykit/kernels/refit.hpp):
-// device_tree() of the CPU-refitted binary tree, and re-gather the refitted
-// trees' leaf-ordered positions.
+// the CPU's BlockBvh8 refitted in place, and rewrite the refitted trees'
+// blocks from the current vertices.
 //
 //   level_wise  one launch per tree level, deepest level first; the levels of
 //               all trees are concatenated (one table; level L of every tree
@@ -55,10 +55,9 @@ inline SourcePart refit_part() { return {"raykit/kernels/refit.hpp", kernels::kR
 /// The device buffers a refit reads and writes.
 struct RefitBuffers {
     Buffer<DeviceNode>* nodes;
-    const Buffer<std::uint32_t>* prim_ids;
+    Buffer<TriangleBlock4>* blocks;  ///< rewritten for the refitted trees' leaves
     const Buffer<Triangle>* triangles;
     const Buffer<float>* positions;
-    Buffer<float>* leaf_positions;  ///< re-gathered for the refitted trees' leaves
     const Buffer<ObjectRecord>* objects;
 };
 
@@ -122,13 +121,12 @@ public:
         std::size_t launches = 0;
         if (method == RefitMethod::level_wise) {
             for (const auto& [first, count] : level_ranges_) {
-                set_args(k.level, *b.nodes, *b.prim_ids, *b.triangles, *b.positions, *b.leaf_positions, *b.objects,
-                         entries_, first, count);
+                set_args(k.level, *b.nodes, *b.blocks, *b.triangles, *b.positions, *b.objects, entries_, first, count);
                 launches += launch(dev.queue(), k.level, count, kGroup);
             }
         } else {
-            set_args(k.one_pass, *b.nodes, *b.prim_ids, *b.triangles, *b.positions, *b.leaf_positions, *b.objects,
-                     starts_, parents_, needs_, counters_, static_cast<std::uint32_t>(start_count_));
+            set_args(k.one_pass, *b.nodes, *b.blocks, *b.triangles, *b.positions, *b.objects, starts_, parents_, needs_,
+                     counters_, static_cast<std::uint32_t>(start_count_));
             launches += launch(dev.queue(), k.one_pass, start_count_, kGroup);
         }
         return launches;

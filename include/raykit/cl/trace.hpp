@@ -8,7 +8,7 @@
 // scene/trace.hpp's closest_hit / any_hit over the WideBvh8 collapsed from the
 // given tree, with the Watertight test: the same traversal order, the same tie
 // rule (smaller t, then smaller triangle index), the same stack bound; the
-// triangles are read in leaf order (cl/device_tree.hpp). On a device with cl_khr_fp64 the edge
+// triangles are read from 4-triangle blocks in leaf order (cl/device_tree.hpp). On a device with cl_khr_fp64 the edge
 // functions are evaluated in double like the CPU's; the two expressions a
 // compiler may fuse into fma are fused on the device exactly when the host
 // build fuses them (RAYKIT_FAST_FMA, cl/layout.hpp host_float_config()); division is
@@ -67,8 +67,8 @@ inline void camera_rays(Device& dev, ::cl::Kernel& k, const CameraFrame& frame, 
 
 class MeshTracer {
 public:
-    /// Uploads the tree in the device's form (device_tree(): 8-wide nodes) with the mesh's
-    /// triangles in leaf order (gather_leaf_positions); `extra_options` go to trace_program().
+    /// Uploads the tree in the device's form (device_tree() of BlockBvh8::make(mesh, bvh): 8-wide
+    /// nodes over 4-triangle blocks); `extra_options` go to trace_program().
     MeshTracer(Device& dev, const MeshView& mesh, const Bvh& bvh, const std::string& extra_options = {}) : dev_(&dev) {
         if (mesh.positions.size() >= 0x55555555u || mesh.size() >= 0x55555555u)
             throw std::length_error("raykit::cl::MeshTracer: mesh too large for 32-bit indices");
@@ -76,40 +76,26 @@ public:
         k_closest_ = program_.kernel("rk_mesh_closest");
         k_any_ = program_.kernel("rk_mesh_any");
         k_camera_ = program_.kernel("rk_camera_rays");
-        triangles_.assign(mesh.triangles.begin(), mesh.triangles.end());
-        vertex_count_ = mesh.positions.size();
         update_tree(mesh, bvh);
     }
 
-    /// Replaces the tree (e.g. after a refit or a rebuild over `mesh`, the same triangles).
+    /// Replaces the tree and its blocks (e.g. after the vertices moved and `bvh` was refitted
+    /// or rebuilt over `mesh`).
     void update_tree(const MeshView& mesh, const Bvh& bvh) {
-        if (bvh.prim_ids.size() != mesh.size() || mesh.size() != triangles_.size())
+        if (bvh.prim_ids.size() != mesh.size())
             throw std::invalid_argument("raykit::cl::MeshTracer: tree and mesh differ in triangle count");
-        DeviceTree tree = device_tree(bvh);
+        const DeviceTree tree = device_tree(BlockBvhT<kDeviceWidth>::make(mesh, bvh));
         if (tree.nodes.size() >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::MeshTracer: tree too large");
         nodes_ = Buffer<DeviceNode>(*dev_, tree.nodes, CL_MEM_READ_ONLY);
-        prim_ids_ = Buffer<std::uint32_t>(*dev_, tree.prims, CL_MEM_READ_ONLY);
-        prim_host_ = std::move(tree.prims);
+        blocks_ = Buffer<TriangleBlock4>(*dev_, tree.blocks, CL_MEM_READ_ONLY);
         node_count_ = static_cast<std::uint32_t>(tree.nodes.size());
-        std::vector<float> lp;
-        gather_leaf_positions(mesh, prim_host_, lp);
-        leaf_positions_ = Buffer<float>(*dev_, lp, CL_MEM_READ_ONLY);
-    }
-    /// Replaces the vertex positions (same count; the tree's boxes are not refitted):
-    /// re-gathers the leaf-ordered positions.
-    void update_positions(std::span<const vec3> positions) {
-        if (positions.size() != vertex_count_)
-            throw std::invalid_argument("raykit::cl::MeshTracer::update_positions: vertex count changed");
-        std::vector<float> lp;
-        gather_leaf_positions(MeshView(positions, triangles_), prim_host_, lp);
-        leaf_positions_.write(*dev_, std::span<const float>(lp));
     }
 
     /// Closest hits of rays[0..n) into hits (device-resident; asynchronous).
     void closest(const Buffer<Ray>& rays, Buffer<Hit>& hits, std::size_t n) {
         check_count(rays, n);
         hits.reserve(*dev_, n);
-        set_args(k_closest_, nodes_, prim_ids_, leaf_positions_, node_count_, rays, hits,
+        set_args(k_closest_, nodes_, blocks_, node_count_, rays, hits,
                  static_cast<std::uint32_t>(n));
         launches_ += launch(dev_->queue(), k_closest_, n, kTraceGroupSize);
     }
@@ -117,7 +103,7 @@ public:
     void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
         check_count(rays, n);
         occluded.reserve(*dev_, n);
-        set_args(k_any_, nodes_, prim_ids_, leaf_positions_, node_count_, rays, occluded,
+        set_args(k_any_, nodes_, blocks_, node_count_, rays, occluded,
                  static_cast<std::uint32_t>(n));
         launches_ += launch(dev_->queue(), k_any_, n, kTraceGroupSize);
     }
@@ -147,8 +133,8 @@ public:
     std::size_t launches() const noexcept { return launches_; }
     /// The tree's nodes (device_tree()).
     Buffer<DeviceNode>& nodes() noexcept { return nodes_; }
-    /// The triangles' vertices in leaf order (9 floats per prim_ids slot).
-    Buffer<float>& leaf_positions() noexcept { return leaf_positions_; }
+    /// The leaves' triangle blocks.
+    Buffer<TriangleBlock4>& blocks() noexcept { return blocks_; }
 
 private:
     static void check_count(const Buffer<Ray>& rays, std::size_t n) {
@@ -159,12 +145,8 @@ private:
     Device* dev_;
     Program program_;
     ::cl::Kernel k_closest_, k_any_, k_camera_;
-    std::vector<Triangle> triangles_;         ///< host copy: update_positions re-gathers
-    std::vector<std::uint32_t> prim_host_;    ///< host copy of the tree's prim_ids
-    std::size_t vertex_count_ = 0;
     Buffer<DeviceNode> nodes_;
-    Buffer<std::uint32_t> prim_ids_;
-    Buffer<float> leaf_positions_;
+    Buffer<TriangleBlock4> blocks_;
     std::uint32_t node_count_ = 0;
     std::size_t launches_ = 0;
 };

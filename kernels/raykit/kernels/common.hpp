@@ -238,6 +238,71 @@ RK_INLINE bool rk_wt_intersect(const rk_wt_ray* d, float3 p0, float3 p1, float3 
     *v_out = W * inv;
     return true;
 }
+/* raykit::Watertight4 (intersect/triangle4.hpp): rk_wt_intersect on the four lanes of a block at
+   once, the same operations lane by lane (so every lane gives the scalar test's answer bit for
+   bit). Returns a bit per lane hit in [tmin, tmax]; *t, *u, *v hold every lane's values. */
+RK_INLINE float4 rk_msub4(float4 a, float s, float4 b) {
+#pragma OPENCL FP_CONTRACT OFF
+#if RK_FUSE_MSUB
+    return fma((float4)(-s), b, a);
+#else
+    return a - s * b;
+#endif
+}
+RK_INLINE uint rk_wt4_intersect(const rk_wt_ray* d, __global const rk_block* b, float tmin, float tmax,
+                                float4* t_out, float4* u_out, float4* v_out) {
+#pragma OPENCL FP_CONTRACT OFF
+    __global const float* P = &b->p[0][0];
+    const int ox = 4 * d->kx, oy = 4 * d->ky, oz = 4 * d->kz;
+    const float orgx = d->org[d->kx], orgy = d->org[d->ky], orgz = d->org[d->kz];
+    const float4 az = vload4(0, P + oz) - orgz, bz = vload4(0, P + 12 + oz) - orgz, cz = vload4(0, P + 24 + oz) - orgz;
+    const float4 Ax = rk_msub4(vload4(0, P + ox) - orgx, d->sx, az), Ay = rk_msub4(vload4(0, P + oy) - orgy, d->sy, az);
+    const float4 Bx = rk_msub4(vload4(0, P + 12 + ox) - orgx, d->sx, bz), By = rk_msub4(vload4(0, P + 12 + oy) - orgy, d->sy, bz);
+    const float4 Cx = rk_msub4(vload4(0, P + 24 + ox) - orgx, d->sx, cz), Cy = rk_msub4(vload4(0, P + 24 + oy) - orgy, d->sy, cz);
+    float4 U, V, W, det;
+    int4 reject;
+#if RK_EDGE_DOUBLE
+    const double4 Ud = convert_double4(Cx) * convert_double4(By) - convert_double4(Cy) * convert_double4(Bx);
+    const double4 Vd = convert_double4(Ax) * convert_double4(Cy) - convert_double4(Ay) * convert_double4(Cx);
+    const double4 Wd = convert_double4(Bx) * convert_double4(Ay) - convert_double4(By) * convert_double4(Ax);
+    const double4 detd = Ud + Vd + Wd;
+    const long4 neg = (Ud < 0.0) | (Vd < 0.0) | (Wd < 0.0), pos = (Ud > 0.0) | (Vd > 0.0) | (Wd > 0.0);
+    reject = convert_int4((neg & pos) | (detd == 0.0) | isnan(detd));
+    if (all(reject)) return 0u;
+    U = convert_float4(Ud);
+    V = convert_float4(Vd);
+    W = convert_float4(Wd);
+    det = convert_float4(detd);
+#else
+    U = Cx * By - Cy * Bx;
+    V = Ax * Cy - Ay * Cx;
+    W = Bx * Ay - By * Ax;
+    const int4 neg = (U < 0.0f) | (V < 0.0f) | (W < 0.0f), pos = (U > 0.0f) | (V > 0.0f) | (W > 0.0f);
+    reject = neg & pos;
+    if (all(reject)) return 0u;
+    det = U + V + W;
+#endif
+    const float4 Az = d->sz * az, Bz = d->sz * bz, Cz = d->sz * cz;
+#if RK_FUSE_T
+    const float4 T = fma(W, Cz, fma(U, Az, V * Bz));
+#else
+    const float4 T = U * Az + V * Bz + W * Cz;
+#endif
+    const float4 inv = 1.0f / det;
+    const float4 t = T * inv;
+    const int4 ok = ~reject & (det != 0.0f) & (t >= tmin) & (t <= tmax);
+    *t_out = t;
+    *u_out = V * inv;
+    *v_out = W * inv;
+    uint m = (ok.x ? 1u : 0u) | (ok.y ? 2u : 0u) | (ok.z ? 4u : 0u) | (ok.w ? 8u : 0u);
+    for (uint k = m; k; k &= k - 1u) {  /* the scalar test's last check, on hit lanes only */
+        const int i = 31 - (int)clz(k & (0u - k));
+        const float3 p0 = (float3)(P[i], P[4 + i], P[8 + i]), p1 = (float3)(P[12 + i], P[16 + i], P[20 + i]),
+                     p2 = (float3)(P[24 + i], P[28 + i], P[32 + i]);
+        if (rk_degenerate(p0, p1, p2)) m &= ~(1u << i);
+    }
+    return m;
+}
 )CLC";
 
 

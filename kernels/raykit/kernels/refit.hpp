@@ -1,13 +1,13 @@
 // raykit/kernels/refit.hpp — bottom-up refit of the objects' wide trees on the device
 // (rk_wnode, cl/device_tree.hpp), two ways, both bit-identical to the CPU's refit of a
-// WideBvhT (bvh/refit.hpp refit_wide_nodes): a leaf slot's box is the AABB::grow of its
-// triangles' MeshView::bounds in slot order, an inner slot's box the grow of its child
-// node's used slots in slot order; min/max select the same floats as the CPU. Node 0 of an
-// object (the root box alone) is refitted like any node.
+// BlockBvh8 (scene/block_bvh.hpp refit, bvh/refit.hpp refit_wide_nodes): a leaf slot's box
+// is the AABB::grow of its blocks' lanes' MeshView::bounds in order, an inner slot's box the
+// grow of its child node's used slots in slot order; min/max select the same floats as the
+// CPU. Node 0 of an object (the root box alone) is refitted like any node.
 //
-// Each leaf's step also writes its triangles' current vertices into the leaf-ordered
-// positions (leaf_pos, 9 floats per prim_ids slot) that the walk reads: the gather after the
-// vertex stage costs no launch of its own and the frame stays on the device.
+// Each leaf's step also rewrites its blocks (rk_block: the triangles' vertices in leaf
+// order, what the walk reads) from the current vertices: the gather after the vertex stage
+// costs no launch of its own and the frame stays on the device.
 //
 // Trees live in one concatenated node buffer; each work item carries its node's global index
 // and its object (rk_object: node/prim/triangle/vertex offsets). Inner child `index` of a node
@@ -52,23 +52,25 @@ RK_INLINE rk_box rk_triangle_box(const float3 p0, const float3 p1, const float3 
     return b;
 }
 
-/* A leaf's box: its triangles' boxes grown in slot order from the empty box (the CPU's wide
-   refit, bvh/refit.hpp). Also gathers the triangles' current vertices into the leaf-ordered
-   positions the walk reads (the gather after the vertex stage, fused with the refit). */
-RK_INLINE rk_box rk_leaf_box(const uint first, const uint count, __global const uint* prim_ids,
-                             __global const uint* tris, __global const float* pos, __global float* leaf_pos,
-                             const rk_object* ob) {
+/* A leaf's box: its blocks' lanes' triangle boxes grown in order from the empty box (the CPU's
+   BlockBvh refit, scene/block_bvh.hpp). Also rewrites the blocks from the triangles' current
+   vertices (the gather after the vertex stage, fused with the refit). */
+RK_INLINE rk_box rk_leaf_box(const uint first, const uint count, __global rk_block* blocks,
+                             __global const uint* tris, __global const float* pos, const rk_object* ob) {
     rk_box b;
     b.lo = (float3)(INFINITY);
     b.hi = (float3)(-INFINITY);
-    for (uint k = ob->prim_offset + first; k < ob->prim_offset + first + count; ++k) {
-        const uint3 t = vload3(ob->triangle_offset + prim_ids[k], tris);
-        const float3 p0 = vload3(ob->vertex_offset + t.x, pos), p1 = vload3(ob->vertex_offset + t.y, pos),
-                     p2 = vload3(ob->vertex_offset + t.z, pos);
-        vstore3(p0, 3 * k, leaf_pos);
-        vstore3(p1, 3 * k + 1, leaf_pos);
-        vstore3(p2, 3 * k + 2, leaf_pos);
-        rk_box_grow(&b, rk_triangle_box(p0, p1, p2));
+    for (uint k = ob->block_offset + first; k < ob->block_offset + first + count; ++k) {
+        __global rk_block* blk = blocks + k;
+        for (int i = 0; i < 4; ++i) {
+            const uint3 t = vload3(ob->triangle_offset + blk->prim[i], tris);
+            const float3 p0 = vload3(ob->vertex_offset + t.x, pos), p1 = vload3(ob->vertex_offset + t.y, pos),
+                         p2 = vload3(ob->vertex_offset + t.z, pos);
+            blk->p[0][i] = p0.x; blk->p[1][i] = p0.y; blk->p[2][i] = p0.z;
+            blk->p[3][i] = p1.x; blk->p[4][i] = p1.y; blk->p[5][i] = p1.z;
+            blk->p[6][i] = p2.x; blk->p[7][i] = p2.y; blk->p[8][i] = p2.z;
+            rk_box_grow(&b, rk_triangle_box(p0, p1, p2));
+        }
     }
     return b;
 }
@@ -84,16 +86,15 @@ RK_INLINE rk_box rk_slot_box(volatile __global const rk_wnode* n, const int c) {
 /* Recomputes every used slot of node g (refit_wide_nodes): a leaf from its triangles, an inner
    child as the union of its child node's used slots (read volatile: in the one-pass refit
    another work item wrote them). */
-RK_INLINE void rk_refit_node(__global rk_wnode* nodes, const uint g, __global const uint* prim_ids,
-                             __global const uint* tris, __global const float* pos, __global float* leaf_pos,
-                             const rk_object* ob) {
+RK_INLINE void rk_refit_node(__global rk_wnode* nodes, const uint g, __global rk_block* blocks,
+                             __global const uint* tris, __global const float* pos, const rk_object* ob) {
     __global rk_wnode* n = nodes + g;
     for (int c = 0; c < RK_WIDTH; ++c) {
         const uint index = n->index[c], count = n->count[c];
         if (count == 0u && index == 0u) continue;  /* unused */
         rk_box b;
         if (count != 0u) {
-            b = rk_leaf_box(index, count, prim_ids, tris, pos, leaf_pos, ob);
+            b = rk_leaf_box(index, count, blocks, tris, pos, ob);
         } else {
             volatile __global const rk_wnode* child = nodes + ob->node_offset + index;
             b.lo = (float3)(INFINITY);
@@ -110,21 +111,20 @@ RK_INLINE void rk_refit_node(__global rk_wnode* nodes, const uint g, __global co
     }
 }
 
-__kernel void rk_refit_level(__global rk_wnode* nodes, __global const uint* prim_ids, __global const uint* tris,
-                             __global const float* pos, __global float* leaf_pos, __global const rk_object* objects,
+__kernel void rk_refit_level(__global rk_wnode* nodes, __global rk_block* blocks, __global const uint* tris,
+                             __global const float* pos, __global const rk_object* objects,
                              __global const uint2* entries, const uint first, const uint count) {
     const uint i = (uint)get_global_id(0);
     if (i >= count) return;
     const uint2 e = entries[first + i];
     const rk_object ob = objects[e.y];
-    rk_refit_node(nodes, e.x, prim_ids, tris, pos, leaf_pos, &ob);
+    rk_refit_node(nodes, e.x, blocks, tris, pos, &ob);
 }
 
 /* One work item per node without inner children; up the tree the last of a node's inner
    children to arrive (needs[p] of them) computes it. */
-__kernel void rk_refit_one_pass(__global rk_wnode* nodes, __global const uint* prim_ids, __global const uint* tris,
-                                __global const float* pos, __global float* leaf_pos,
-                                __global const rk_object* objects, __global const uint2* starts,
+__kernel void rk_refit_one_pass(__global rk_wnode* nodes, __global rk_block* blocks, __global const uint* tris,
+                                __global const float* pos, __global const rk_object* objects, __global const uint2* starts,
                                 __global const uint* parents, __global const uint* needs,
                                 __global uint* counters, const uint count) {
     const uint i = (uint)get_global_id(0);
@@ -132,7 +132,7 @@ __kernel void rk_refit_one_pass(__global rk_wnode* nodes, __global const uint* p
     const uint2 e = starts[i];
     const rk_object ob = objects[e.y];
     uint g = e.x;
-    rk_refit_node(nodes, g, prim_ids, tris, pos, leaf_pos, &ob);
+    rk_refit_node(nodes, g, blocks, tris, pos, &ob);
     for (;;) {
         const uint p = parents[g];
         if (p == RK_INVALID) return;
@@ -140,7 +140,7 @@ __kernel void rk_refit_one_pass(__global rk_wnode* nodes, __global const uint* p
         if (atomic_inc(&counters[p]) + 1u < needs[p]) return;  /* a sibling finishes p */
         mem_fence(CLK_GLOBAL_MEM_FENCE);                         /* the siblings' boxes after it */
         counters[p] = 0u;                                        /* ready for the next refit */
-        rk_refit_node(nodes, p, prim_ids, tris, pos, leaf_pos, &ob);
+        rk_refit_node(nodes, p, blocks, tris, pos, &ob);
         g = p;
     }
 }

@@ -58,16 +58,14 @@ typedef struct {
 #endif
 
 /* What a walk runs over: the scene's concatenated object arrays and its top
-   level, or (mesh != 0) the one object `mesh_object` with no top level.
-   leaf_pos: per prim_ids slot the triangle's three vertices (9 floats). */
+   level, or (mesh != 0) the one object `mesh_object` with no top level. */
 typedef struct {
     __global const rk_node* top;
     __global const uint* top_ids;
     __global const rk_instance* instances;
     __global const rk_object* objects;
     __global const rk_wnode* nodes;
-    __global const uint* prim_ids;
-    __global const float* leaf_pos;
+    __global const rk_block* blocks;
     uint top_count;
     int mesh;
     rk_object mesh_object;
@@ -173,8 +171,7 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
             ++leaf_k;
             if (ob.node_count == 0) continue;
             __global const rk_wnode* restrict nodes = sc->nodes + ob.node_offset;
-            __global const uint* restrict prim_ids = sc->prim_ids + ob.prim_offset;
-            __global const float* restrict lpos = sc->leaf_pos + (size_t)9 * ob.prim_offset;
+            __global const rk_block* restrict blocks = sc->blocks + ob.block_offset;
             const rk_slab_ray s = mapped ? rk_slab_prepare(o.org, o.dir, o.tmin) : top_s;
             const rk_wt_ray w = rk_wt_prepare(o.org, o.dir);
             /* raykit::traverse over a WideBvhT: node 0 holds the root box alone (its test is the
@@ -231,24 +228,32 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
                 } else {
                     if (steps) ++*steps;
                     for (uint k = cidx; k < cidx + ccnt; ++k) {
-                        const float3 p0 = vload3(3 * k, lpos), p1 = vload3(3 * k + 1, lpos), p2 = vload3(3 * k + 2, lpos);
-                        float th, uh, vh;
-                        if (!rk_wt_intersect(&w, p0, p1, p2, r->tmin, tmax, &th, &uh, &vh)) continue;
-                        const uint p = prim_ids[k];
-                        /* Hit::closer_than against the best so far (th <= tmax = best->t when there is one) */
-                        if (!any && !(th < best->t || inst < best->inst || (inst == best->inst && p < best->prim)))
-                            continue;
+                        __global const rk_block* b = blocks + k;
+                        float4 t4, u4, v4;
+                        uint m = rk_wt4_intersect(&w, b, r->tmin, tmax, &t4, &u4, &v4);
+                        while (m) {  /* lanes in order, as a scalar loop over the leaf's triangles */
+                            const int i = rk_lowest_bit(m);
+                            m &= m - 1u;
+                            const float th = i == 0 ? t4.x : i == 1 ? t4.y : i == 2 ? t4.z : t4.w;
+                            if (!(th <= tmax)) continue;
+                            const uint p = b->prim[i];
+                            /* Hit::closer_than against the best so far (th <= tmax = best->t when there is one) */
+                            if (!any && !(th < best->t || inst < best->inst || (inst == best->inst && p < best->prim)))
+                                continue;
+                            const float uh = i == 0 ? u4.x : i == 1 ? u4.y : i == 2 ? u4.z : u4.w;
+                            const float vh = i == 0 ? v4.x : i == 1 ? v4.y : i == 2 ? v4.z : v4.w;
 #ifdef RK_LEAF_FILTER
-                        if (f && !rk_keep(f, object, &ob, p, uh, vh)) continue;
+                            if (f && !rk_keep(f, object, &ob, p, uh, vh)) continue;
 #endif
-                        if (any) return true;
-                        best->t = th;
-                        best->u = uh;
-                        best->v = vh;
-                        best->prim = p;
-                        best->inst = inst;
-                        tmax = th;
-                        found = true;
+                            if (any) return true;
+                            best->t = th;
+                            best->u = uh;
+                            best->v = vh;
+                            best->prim = p;
+                            best->inst = inst;
+                            tmax = th;
+                            found = true;
+                        }
                     }
                 }
                 /* the next entry still in front of tmax */
@@ -282,16 +287,15 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
     }
 }
 
-RK_INLINE rk_scene rk_mesh_scene(__global const rk_wnode* nodes, __global const uint* prim_ids,
-                                 __global const float* leaf_pos, const uint node_count) {
+RK_INLINE rk_scene rk_mesh_scene(__global const rk_wnode* nodes, __global const rk_block* blocks,
+                                 const uint node_count) {
     rk_scene sc;
     sc.top = 0;
-    sc.top_ids = prim_ids;
+    sc.top_ids = 0;
     sc.instances = 0;
     sc.objects = 0;
     sc.nodes = nodes;
-    sc.prim_ids = prim_ids;
-    sc.leaf_pos = leaf_pos;
+    sc.blocks = blocks;
     sc.top_count = 0u;
     sc.mesh = 1;
     rk_object ob = {0u, node_count, 0u, 0u, 0u, 0u, 0u, 0u};
@@ -300,32 +304,30 @@ RK_INLINE rk_scene rk_mesh_scene(__global const rk_wnode* nodes, __global const 
 }
 
 /* The kernel parameters of a two-level scene, and the rk_scene made of them (tris: for the
-   renderer's leaf filter; the walk reads leaf_pos). */
+   renderer's leaf filter; the walk reads the blocks). */
 #define RK_SCENE_PARAMS __global const rk_node* top, const uint top_count, __global const uint* top_ids, \
     __global const rk_instance* instances, __global const rk_object* objects, __global const rk_wnode* nodes, \
-    __global const uint* prim_ids, __global const rk_triangle* tris, __global const float* leaf_pos
-#define RK_SCENE_MAKE(sc) const rk_scene sc = {top, top_ids, instances, objects, nodes, prim_ids, leaf_pos, \
+    __global const rk_block* blocks, __global const rk_triangle* tris
+#define RK_SCENE_MAKE(sc) const rk_scene sc = {top, top_ids, instances, objects, nodes, blocks, \
     top_count, 0, {0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u}}
 
-__kernel void rk_mesh_closest(__global const rk_wnode* nodes, __global const uint* prim_ids,
-                              __global const float* leaf_pos, const uint node_count,
+__kernel void rk_mesh_closest(__global const rk_wnode* nodes, __global const rk_block* blocks, const uint node_count,
                               __global const rk_ray* rays, __global rk_hit* hits, const uint n) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
     const rk_ray r = rays[i];
-    const rk_scene sc = rk_mesh_scene(nodes, prim_ids, leaf_pos, node_count);
+    const rk_scene sc = rk_mesh_scene(nodes, blocks, node_count);
     rk_hit h = rk_miss();
     rk_walk(&sc, &r, 0, &h, 0, 0);
     hits[i] = h;
 }
 
-__kernel void rk_mesh_any(__global const rk_wnode* nodes, __global const uint* prim_ids,
-                          __global const float* leaf_pos, const uint node_count,
+__kernel void rk_mesh_any(__global const rk_wnode* nodes, __global const rk_block* blocks, const uint node_count,
                           __global const rk_ray* rays, __global uint* occluded, const uint n) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
     const rk_ray r = rays[i];
-    const rk_scene sc = rk_mesh_scene(nodes, prim_ids, leaf_pos, node_count);
+    const rk_scene sc = rk_mesh_scene(nodes, blocks, node_count);
     rk_hit h = rk_miss();
     occluded[i] = rk_walk(&sc, &r, 1, &h, 0, 0) ? 1u : 0u;
 }
