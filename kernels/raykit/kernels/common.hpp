@@ -107,12 +107,15 @@ RK_INLINE bool rk_slab(const rk_slab_ray* s, __global const rk_node* n, float tm
 RK_INLINE uint rk_wslab(const rk_slab_ray* s, __global const rk_wnode* n, float tmax, float* td) {
     __global const float* f = (__global const float*)n;
     RK_FW t0 = (RK_FW)(s->tmin), t1 = (RK_FW)(tmax);
-    for (int a = 2; a >= 0; --a) {
-        const RK_FW tn = (RK_VLOADW(0, f + s->wnear[a]) - s->org[a]) * s->inv[a];
-        const RK_FW tf = (RK_VLOADW(0, f + s->wfar[a]) - s->org[a]) * s->inv[a];
-        t0 = select(t0, tn, isgreater(tn, t0));
-        t1 = select(t1, tf, isless(tf, t1));
+#define RK_WSLAB_AXIS(a)                                                            \
+    {                                                                               \
+        const RK_FW tn = (RK_VLOADW(0, f + s->wnear[a]) - s->org[a]) * s->inv[a];  \
+        const RK_FW tf = (RK_VLOADW(0, f + s->wfar[a]) - s->org[a]) * s->inv[a];   \
+        t0 = select(t0, tn, isgreater(tn, t0));                                     \
+        t1 = select(t1, tf, isless(tf, t1));                                        \
     }
+    RK_WSLAB_AXIS(2) RK_WSLAB_AXIS(1) RK_WSLAB_AXIS(0)  /* unrolled: PoCL kept the loop */
+#undef RK_WSLAB_AXIS
     t1 = t1 * RK_SLAB_EXIT_SCALE;
     RK_VSTOREW(t0, 0, td);
 #if RK_WIDTH == 8
