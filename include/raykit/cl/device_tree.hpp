@@ -5,7 +5,7 @@
 // leaf order, structure of arrays), each block tested in one 4-lane watertight test
 // (kernels/raykit/kernels/common.hpp rk_wt4_intersect). The blocks themselves and the
 // tree are uploaded as the CPU holds them, so the device's traversal steps equal the
-// CPU's node and leaf counts for the same tree.
+// CPU's node and leaf counts for the same tree (figures: kernels/raykit/kernels/trace.hpp).
 //
 //   device_tree(blocks)     node 0 holds the root box alone in slot 0 (its inner child
 //                           is node 1: the twin of the CPU's first test of

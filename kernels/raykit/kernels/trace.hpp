@@ -1,20 +1,42 @@
 // raykit/kernels/trace.hpp — the one closest-hit / any-hit walk on the device.
 //
 // rk_walk() is the twin of raykit::closest_hit / any_hit over a Scene
-// (scene/trace.hpp + Scene's instance leaves): the same front-to-back order
-// (nearer child first, the left one on equal entry distances), the same
-// pruning (a popped node is skipped when its entry is beyond
+// (scene/trace.hpp + Scene's instance leaves) walking SceneTrees::blocks, the
+// CPU's fastest form: the same trees, the same order, the same pruning (a
+// popped entry is skipped when its entry distance is beyond
 // tmax·RK_SLAB_EXIT_SCALE), the same tie rule (smaller t, then smaller
 // instance, then smaller triangle). Both levels are walked by one function:
 // a top-level leaf enters its instances one after the other (the ray mapped
 // into the object's space, an identity instance's ray used as it is); each
-// object's walk is an inner loop (the hot one, as tight as a plain mesh
-// walk) on the same stack above the top level's entries and, when its part
-// of the stack is empty, hands back to the next instance or the top level.
-// A plain mesh is the walk of one object with no top level (mesh mode).
-// Each level's stack holds RK_MAX_DEPTH entries; the CPU throws on a deeper
-// tree, here the walk stops with the hits found so far (raykit's builders
-// never emit such trees).
+// object's walk is an inner loop (the hot one, as tight as a plain mesh walk)
+// on its own stack and, when that is empty, hands back to the next instance
+// or the top level. A plain mesh is the walk of one object with no top level
+// (mesh mode).
+//
+// Objects: 8-wide nodes (rk_wnode, cl/device_tree.hpp) whose leaves are runs
+// of 4-triangle blocks (rk_block), as raykit::traverse walks a WideBvh8 over
+// BlockLeaves: node 0 holds the root box alone (the CPU's first test of
+// WideBvhT::bounds, not counted as a step); at a node the 8 child boxes are
+// tested at once (rk_wslab), the entered children sorted by entry distance
+// (ties in slot order), the nearest entered and the others pushed far to
+// near (any hit: pushed in slot order); a block is tested 4 lanes at once
+// (rk_wt4_intersect), lanes taken in order. The binary walk over prim_ids →
+// triangle → vertex indices → positions it replaces was slower everywhere
+// measured (bench_cl, PoCL on this 2-core machine, process CPU ms per 262 144
+// rays, binary → wide + blocks: torus100k primary closest 29.5 → 19.2,
+// random closest 143 → 110, bunny primary closest 24.2 → 15.6, random
+// closest 100 → 71); 8-wide nodes over per-triangle leaves without blocks
+// were within noise of the blocks on these rows.
+// The top level stays binary (rk_node, bvh/traverse.hpp's order: nearer child
+// first, the left one on equal entry distances): it is the CPU's top level,
+// and the order instances are entered in decides the tmax each object's walk
+// starts with, so a different top-level shape would change the traversal
+// steps compared with the CPU (debug-cost images). It is rebuilt on the host
+// each frame and holds one leaf entry per instance, a small part of a walk.
+// Stacks: the top level's RK_MAX_DEPTH entries, an object's
+// (RK_WIDTH − 1)·RK_MAX_DEPTH + 1 (traverse's bound); the CPU throws on a
+// deeper tree, here the walk stops with the hits found so far (raykit's
+// builders never emit such trees).
 //
 // Leaf filter: when the program defines RK_LEAF_FILTER (before this part) it
 // also defines the type rk_filter and
