@@ -224,10 +224,27 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
                             }
                             continue;
                         }
+                        if (!mask) {  /* one child: no sorting */
+                            cidx = n->index[i];
+                            ccnt = n->count[i];
+                            continue;
+                        }
+                        if (!(mask & (mask - 1u))) {  /* two: the nearer (ties: the first slot) */
+                            const int i1 = rk_lowest_bit(mask);
+                            const bool swap = td[i1] < td[i];
+                            const int a = swap ? i1 : i, c = swap ? i : i1;
+                            ws_index[wsp] = n->index[c];
+                            ws_count[wsp] = n->count[c];
+                            ws_t[wsp] = td[c];
+                            ++wsp;
+                            cidx = n->index[a];
+                            ccnt = n->count[a];
+                            continue;
+                        }
                         int e[RK_WIDTH];
                         int k = 1;
                         e[0] = i;
-                        while (mask) {  /* insertion sort by entry distance, stable */
+                        while (mask) {  /* three or more: insertion sort by entry distance, stable */
                             i = rk_lowest_bit(mask);
                             mask &= mask - 1u;
                             int j = k++;
