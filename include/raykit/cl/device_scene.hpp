@@ -366,6 +366,11 @@ public:
 
     // ------------------------------------------------------------ inspection
 
+    // the whole arrays (DeviceSceneArrays), next to the per-object reads below
+    using DeviceSceneArrays::blocks;
+    using DeviceSceneArrays::nodes;
+    using DeviceSceneArrays::positions;
+
     const LaunchCounts& launches() const noexcept { return launches_; }
     const Program& program() {
         ensure_program();
