@@ -5,8 +5,11 @@
 // OpenCL device. Timings wait for the device (clFinish) and use real time.
 //
 // Cases (items/s = rays/s for traces; counters in ms where named so):
-//   cl_trace/<scene>/<rays>/<closest|any>/device       MeshTracer, rays resident on the device,
-//                                                      one launch per iteration (kernel + finish)
+//   cl_trace/<scene>/<rays>/<closest|any>/device       MeshTracer (8-wide nodes over 4-triangle
+//                                                      blocks, cl/device_tree.hpp), rays resident on
+//                                                      the device, one launch per iteration
+//   cl_trace/<scene>/<rays>/<closest|any>/cpu_blocks8/threads:2  the CPU's fastest path on the
+//                                                      same tree (BlockBvh8::make of the same Bvh)
 //   cl_trace/<scene>/<rays>/<closest|any>/cpu/threads:2 intersect_closest / intersect_any over
 //                                                      2 std::threads (rkbench::trace_parallel)
 //       counter cpu_ms: process CPU time per iteration (all threads, PoCL's too): on a
@@ -328,12 +331,46 @@ void BM_FrameCpu(benchmark::State& state) {
     state.counters["Mrays/s"] = double(hits.size()) * 1e-3 / (trace / it);
 }
 
+/// The CPU's fastest path on the device's tree: BlockBvh8::make(mesh, raykit_bvh(s)), the
+/// 8-wide nodes and 4-triangle blocks MeshTracer uploads (cl/device_tree.hpp).
+void BM_TraceCpuBlocks(benchmark::State& state, const std::string& scene, const std::string& set, bool any) {
+    const rkbench::Scene* s = rkbench::scene_or_skip(state, scene);
+    if (!s) return;
+    static std::map<std::string, std::unique_ptr<raykit::BlockBvh8>> cache;
+    auto& blocks = cache[s->name];
+    if (!blocks) blocks = std::make_unique<raykit::BlockBvh8>(raykit::BlockBvh8::make(s->mesh, rkbench::raykit_bvh(*s)));
+    const auto& rays = rkbench::rays(*s, set);
+    std::vector<raykit::Hit> hits(rays.size());
+    std::vector<std::uint8_t> occ(rays.size());
+    const unsigned threads = static_cast<unsigned>(state.range(0));
+    const double c0 = process_cpu_ms();
+    for (auto _ : state) {
+        rkbench::trace_parallel(rays.size(), threads, [&](std::size_t b, std::size_t e) {
+            if (any)
+                for (std::size_t i = b; i < e; ++i) occ[i] = raykit::intersect_any(*blocks, rays[i]);
+            else
+                for (std::size_t i = b; i < e; ++i) hits[i] = raykit::intersect_closest(*blocks, rays[i]);
+        });
+        benchmark::DoNotOptimize(hits.data());
+        benchmark::DoNotOptimize(occ.data());
+    }
+    state.counters["cpu_ms"] = (process_cpu_ms() - c0) / double(state.iterations());
+    state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * rays.size()));
+    state.counters["Mrays/s"] = benchmark::Counter(double(rays.size()) * 1e-6, benchmark::Counter::kIsIterationInvariantRate);
+}
+
 const bool registered = [] {
     for (const std::string scene : {"torus100k", "torus1M", "bunny"})
         for (const std::string set : {"primary", "random"})
             for (const bool any : {false, true}) {
                 const std::string base = "cl_trace/" + scene + "/" + set + "/" + (any ? "any" : "closest");
                 benchmark::RegisterBenchmark((base + "/device").c_str(), BM_TraceDevice, scene, set, any)
+                    ->UseRealTime()
+                    ->MinTime(0.5)
+                    ->Unit(benchmark::kMillisecond);
+                benchmark::RegisterBenchmark((base + "/cpu_blocks8").c_str(), BM_TraceCpuBlocks, scene, set, any)
+                    ->ArgName("threads")
+                    ->Arg(2)
                     ->UseRealTime()
                     ->MinTime(0.5)
                     ->Unit(benchmark::kMillisecond);

@@ -575,11 +575,21 @@ Agreement compare_scene(rcl::DeviceScene<rcl::WaveHook, rcl::ScaleHook>& ds, con
 
 using TestDeviceScene = rcl::DeviceScene<rcl::WaveHook, rcl::ScaleHook>;
 
-void expect_nodes_equal(const std::vector<Node>& dev, const Bvh& cpu, const char* what) {
-    ASSERT_EQ(dev.size(), cpu.nodes.size()) << what;
+/// The device tree of object `o` and its blocks equal device_tree() of the CPU's refitted
+/// BlockBvh8 bit for bit.
+template <class DS>
+void expect_nodes_equal(DS& ds, std::uint32_t o, const SceneObject& cpu, const char* what) {
+    const std::vector<rcl::DeviceNode> dev = ds.nodes(o);
+    const rcl::DeviceTree want = rcl::device_tree(cpu.blocks);
+    ASSERT_EQ(dev.size(), want.nodes.size()) << what;
     std::size_t differ = 0;
-    for (std::size_t i = 0; i < dev.size(); ++i) differ += std::memcmp(&dev[i], &cpu.nodes[i], sizeof(Node)) != 0;
+    for (std::size_t i = 0; i < dev.size(); ++i) differ += std::memcmp(&dev[i], &want.nodes[i], sizeof(rcl::DeviceNode)) != 0;
     EXPECT_EQ(differ, 0u) << what << ": nodes not bit-identical to the CPU refit, of " << dev.size();
+    const std::vector<TriangleBlock4> blocks = ds.blocks(o);
+    ASSERT_EQ(blocks.size(), want.blocks.size()) << what;
+    differ = 0;
+    for (std::size_t i = 0; i < blocks.size(); ++i) differ += std::memcmp(&blocks[i], &want.blocks[i], sizeof(TriangleBlock4)) != 0;
+    EXPECT_EQ(differ, 0u) << what << ": blocks not bit-identical to the CPU's, of " << blocks.size();
 }
 
 }  // namespace
@@ -605,7 +615,7 @@ TEST(ClScene, ExactHookGivesBitIdenticalVerticesTreesAndHits) {
     Scene s = make_test_scene(true);
     TestDeviceScene ds(dev, s);
     const std::uint32_t soup = 2, cloth = 3;
-    const std::vector<Node> static_nodes_before = ds.nodes(0);
+    const std::vector<rcl::DeviceNode> static_nodes_before = ds.nodes(0);
     const std::vector<vec3> static_pos_before = ds.positions(1);
     for (const auto method : {rcl::RefitMethod::level_wise, rcl::RefitMethod::one_pass, rcl::RefitMethod::one_pass}) {
         const float f = method == rcl::RefitMethod::level_wise ? 1.25f : 0.75f + 0.01f * float(ds.launches().vertex);
@@ -617,16 +627,16 @@ TEST(ClScene, ExactHookGivesBitIdenticalVerticesTreesAndHits) {
         ds.update(method);
         EXPECT_EQ(ds.positions(soup), s.objects()[soup].mesh.positions);
         EXPECT_EQ(ds.positions(cloth), s.objects()[cloth].mesh.positions);
-        expect_nodes_equal(ds.nodes(soup), s.objects()[soup].bvh, rcl::refit_method_name(method));
-        expect_nodes_equal(ds.nodes(cloth), s.objects()[cloth].bvh, rcl::refit_method_name(method));
+        expect_nodes_equal(ds, soup, s.objects()[soup], rcl::refit_method_name(method));
+        expect_nodes_equal(ds, cloth, s.objects()[cloth], rcl::refit_method_name(method));
         compare_scene(ds, s, scene_rays(s, 3000, 17)).expect_good("dynamic scene, scale hook");
     }
     EXPECT_EQ(ds.compiled_hooks(), std::vector<std::string>{"scale"});
     EXPECT_EQ(ds.launches().vertex, 3u);  // one launch per frame for both objects
     // static objects were never touched
-    const std::vector<Node> static_nodes_after = ds.nodes(0);
+    const std::vector<rcl::DeviceNode> static_nodes_after = ds.nodes(0);
     ASSERT_EQ(static_nodes_before.size(), static_nodes_after.size());
-    EXPECT_EQ(std::memcmp(static_nodes_before.data(), static_nodes_after.data(), static_nodes_after.size() * sizeof(Node)), 0);
+    EXPECT_EQ(std::memcmp(static_nodes_before.data(), static_nodes_after.data(), static_nodes_after.size() * sizeof(rcl::DeviceNode)), 0);
     EXPECT_EQ(ds.positions(1), static_pos_before);
 }
 
@@ -653,8 +663,8 @@ TEST(ClScene, WaveHookMatchesItsCpuTwinAndRefitIsBitIdentical) {
         // trees: the CPU refit of the device's vertices, bit for bit
         s.set_positions(cloth, dp);
         s.set_positions(soup, ds.positions(soup));
-        expect_nodes_equal(ds.nodes(cloth), s.objects()[cloth].bvh, rcl::refit_method_name(method));
-        expect_nodes_equal(ds.nodes(soup), s.objects()[soup].bvh, rcl::refit_method_name(method));
+        expect_nodes_equal(ds, cloth, s.objects()[cloth], rcl::refit_method_name(method));
+        expect_nodes_equal(ds, soup, s.objects()[soup], rcl::refit_method_name(method));
         s.update_top_level();
         compare_scene(ds, s, scene_rays(s, 2000, 23 + frame)).expect_good("dynamic scene, wave hook");
     }
@@ -694,10 +704,10 @@ TEST(ClRefit, LevelWiseAndOnePassAreBitIdenticalToCpu) {
         ds.update(method);
         const std::size_t launches = ds.launches().refit - before;
         EXPECT_EQ(launches, method == rcl::RefitMethod::one_pass ? 1u : ds.refit_plan().levels());
-        for (std::uint32_t o : dyn) expect_nodes_equal(ds.nodes(o), s.objects()[o].bvh, rcl::refit_method_name(method));
+        for (std::uint32_t o : dyn) expect_nodes_equal(ds, o, s.objects()[o], rcl::refit_method_name(method));
         // the other method on the same vertices gives the same nodes again
         ds.refit(method == rcl::RefitMethod::one_pass ? rcl::RefitMethod::level_wise : rcl::RefitMethod::one_pass);
-        for (std::uint32_t o : dyn) expect_nodes_equal(ds.nodes(o), s.objects()[o].bvh, "second method");
+        for (std::uint32_t o : dyn) expect_nodes_equal(ds, o, s.objects()[o], "second method");
     }
     EXPECT_EQ(ds.launches().vertex, 0u);
 }

@@ -188,11 +188,12 @@ Diff compare(const Image& a, const Image& b) {
     return d;
 }
 
-/// The CPU twin of the device renderer: the same scene walking the binary tree the device
-/// walks (the same hits as the blocks; the same node counts for debug-cost).
+/// The CPU twin of the device renderer: the same scene walking the 8-wide block trees, the
+/// shape the device walks (cl/device_tree.hpp: the same hits and the same node counts for
+/// debug-cost).
 ShadeScene twin_view(const RenderScene& rs) {
     ShadeScene v = rs.view();
-    v.trees = SceneTrees::binary;
+    v.trees = SceneTrees::blocks;
     return v;
 }
 

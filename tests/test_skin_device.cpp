@@ -112,11 +112,26 @@ void check_model(rcl::Device& dev, const SmdModel& model, const SmdSkeletonAnim*
             EXPECT_EQ(w.position, cpu_p[i]);
         }
         // Refit after skinning: every box encloses its (device-skinned) triangles.
-        Bvh tree = scene.objects()[body].bvh;
-        const std::vector<Node> dn = ds.nodes(body);
-        tree.nodes.assign(dn.begin(), dn.end());
+        // (the device tree's nodes 1.. are a BlockBvh8's with inner indices + 1, cl/device_tree.hpp)
+        const std::vector<raykit::cl::DeviceNode> dn = ds.nodes(body);
+        ASSERT_GE(dn.size(), 2u);
+        const std::vector<TriangleBlock4> blocks = ds.blocks(body);
+        WideBvhT<raykit::cl::kDeviceWidth> tree;  // leaves back to prim_ids ranges of the blocks' lanes
+        for (std::size_t i = 1; i < dn.size(); ++i) {
+            auto n = dn[i];
+            for (int c = 0; c < raykit::cl::kDeviceWidth; ++c) {
+                if (n.count[c] == 0 && !n.unused(c)) --n.index[c];
+                if (n.count[c] == 0) continue;
+                const auto first = static_cast<std::uint32_t>(tree.prim_ids.size());
+                for (std::uint32_t k = n.index[c]; k < n.index[c] + n.count[c]; ++k)
+                    for (int l = 0; l < 4; ++l) tree.prim_ids.push_back(blocks.at(k).prim[l]);
+                n.index[c] = first;
+                n.count[c] = static_cast<std::uint32_t>(tree.prim_ids.size()) - first;
+            }
+            tree.nodes.push_back(n);
+        }
         const std::vector<AABB> boxes = triangle_boxes(dev_p, model.mesh);
-        EXPECT_EQ(validate(tree, boxes), "");
+        EXPECT_EQ(tree.validate(boxes), "");
         // The top level holds the refitted root.
         const AABB root = ds.root_boxes()[body];
         for (const AABB& b : boxes) {

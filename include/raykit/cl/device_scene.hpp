@@ -9,18 +9,21 @@
 //     FrameTimes ft = ds.update();                          // vertex stage, refit, top level
 //     ds.camera_rays(cam.frame(), rays);  ds.closest(rays, hits, n);
 //
-// Upload: every object's nodes, prim_ids, triangles, positions and vertex
-// records (rk_vertex: position, normal, uv — what the renderer shades with)
-// go into concatenated device arrays once, dynamic objects first. Static
-// objects are never written again. A dynamic object also gets its rest
-// vertices; the vertex stage writes its moved vertices over its records.
+// Upload: every object's tree in the device's form (device_tree() of its
+// BlockBvh8: the 8-wide tree and the 4-triangle blocks the CPU walks,
+// cl/device_tree.hpp), triangles, positions and vertex records
+// (rk_vertex: position, normal, uv — what the renderer shades with) go into
+// concatenated device arrays once, dynamic objects first. Static objects are
+// never written again. A dynamic object also gets its rest vertices; the
+// vertex stage writes its moved vertices over its records.
 //
 // update() runs only the stages the scene needs:
 //   vertex stage  one launch per hook that moves at least one object (the
 //                 hook's objects are concatenated into one launch); each vertex
 //                 is computed from its rest copy;
 //   refit         when a vertex stage ran or set_positions() was called:
-//                 every dynamic tree, level-wise or one-pass (cl/refit.hpp);
+//                 every dynamic tree, level-wise or one-pass (cl/refit.hpp),
+//                 its leaves rewriting their blocks from the moved vertices;
 //   top level     dynamic root boxes gathered (one launch + one small read,
 //                 only after a refit), instance world boxes from the Scene's
 //                 transforms (transformed_box), the top-level tree built (or
@@ -41,6 +44,7 @@
 // DeviceScene is not thread-safe: use it from one thread at a time.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstddef>
@@ -55,6 +59,7 @@
 #include <vector>
 
 #include "raykit/cl/buffer.hpp"
+#include "raykit/cl/device_tree.hpp"
 #include "raykit/cl/hook.hpp"
 #include "raykit/cl/layout.hpp"
 #include "raykit/cl/program.hpp"
@@ -103,10 +108,10 @@ public:
     const Bvh& top_level() const noexcept { return top_; }
 
     // The arrays as kernels bind them (kernels/raykit/kernels/trace.hpp's RK_SCENE_PARAMS order).
-    /// Every object's tree nodes, at its node_offset.
-    const Buffer<Node>& nodes() const noexcept { return nodes_; }
-    /// Every object's prim_ids, at its prim_offset.
-    const Buffer<std::uint32_t>& prim_ids() const noexcept { return prim_ids_; }
+    /// Every object's tree nodes (device_tree()), at its node_offset.
+    const Buffer<DeviceNode>& nodes() const noexcept { return nodes_; }
+    /// Every object's leaves' triangle blocks (DeviceTree::blocks), at its block_offset.
+    const Buffer<TriangleBlock4>& blocks() const noexcept { return blocks_; }
     /// Every object's triangles (vertex indices relative to the object), at its triangle_offset.
     const Buffer<Triangle>& triangles() const noexcept { return triangles_; }
     /// Every object's current positions (3 floats each), at its vertex_offset.
@@ -140,8 +145,8 @@ protected:
     std::vector<ObjectRecord> records_;
     std::vector<AABB> roots_;
     bool fresh_ = false;
-    Buffer<Node> nodes_;
-    Buffer<std::uint32_t> prim_ids_;
+    Buffer<DeviceNode> nodes_;
+    Buffer<TriangleBlock4> blocks_;
     Buffer<Triangle> triangles_;
     Buffer<float> positions_;
     Buffer<ObjectRecord> objects_;
@@ -175,24 +180,26 @@ public:
         records_.resize(objs.size());
         hook_of_.assign(objs.size(), kNoHook);
         params_.resize(objs.size());
-        std::vector<Node> nodes;
-        std::vector<std::uint32_t> prim_ids;
+        std::vector<DeviceNode> nodes;
+        std::vector<TriangleBlock4> blocks;
         std::vector<Triangle> tris;
         std::vector<float> pos;
+        std::vector<std::vector<DeviceNode>> dynamic_trees;
         std::vector<Vertex> verts, rest;
         std::vector<RefitTree> trees;
         auto add = [&](std::uint32_t i) {
             const SceneObject& o = objs[i];
             ObjectRecord& r = records_[i];
+            DeviceTree tree = device_tree(o.blocks);
             r.node_offset = checked(nodes.size());
-            r.node_count = checked(o.bvh.nodes.size());
-            r.prim_offset = checked(prim_ids.size());
+            r.node_count = checked(tree.nodes.size());
+            r.block_offset = checked(blocks.size());
             r.triangle_offset = checked(tris.size());
             r.vertex_offset = checked(pos.size() / 3);
             r.vertex_count = checked(o.mesh.positions.size());
             r.triangle_count = checked(o.mesh.triangles.size());
-            nodes.insert(nodes.end(), o.bvh.nodes.begin(), o.bvh.nodes.end());
-            prim_ids.insert(prim_ids.end(), o.bvh.prim_ids.begin(), o.bvh.prim_ids.end());
+            nodes.insert(nodes.end(), tree.nodes.begin(), tree.nodes.end());
+            blocks.insert(blocks.end(), tree.blocks.begin(), tree.blocks.end());
             tris.insert(tris.end(), o.mesh.triangles.begin(), o.mesh.triangles.end());
             for (const vec3& p : o.mesh.positions) pos.insert(pos.end(), {p.x, p.y, p.z});
             checked(pos.size() / 3);
@@ -203,7 +210,8 @@ public:
                 dynamic_.push_back(i);
                 rest_offset_.push_back(checked(rest.size()));
                 rest.insert(rest.end(), o.rest.begin(), o.rest.end());
-                trees.push_back({&o.bvh, i, r.node_offset});
+                trees.push_back({{}, i, r.node_offset});
+                dynamic_trees.push_back(std::move(tree.nodes));
             }
         };
         for (std::uint32_t i = 0; i < objs.size(); ++i)
@@ -213,8 +221,9 @@ public:
         roots_.resize(objs.size());
         for (std::uint32_t i = 0; i < objs.size(); ++i) roots_[i] = objs[i].bounds();
 
-        nodes_ = Buffer<Node>(dev, nodes);
-        prim_ids_ = Buffer<std::uint32_t>(dev, prim_ids, CL_MEM_READ_ONLY);
+        for (std::size_t d = 0; d < trees.size(); ++d) trees[d].nodes = dynamic_trees[d];
+        nodes_ = Buffer<DeviceNode>(dev, nodes);
+        blocks_ = Buffer<TriangleBlock4>(dev, blocks);
         triangles_ = Buffer<Triangle>(dev, tris, CL_MEM_READ_ONLY);
         positions_ = Buffer<float>(dev, pos);
         objects_ = Buffer<ObjectRecord>(dev, records_, CL_MEM_READ_ONLY);
@@ -301,8 +310,7 @@ public:
         ft.vertex_ms = ms(t0);
         t0 = clock::now();
         if (moved) {
-            launches_.refit += refit_plan_.run(*dev_, refit_kernels_, method,
-                                               {&nodes_, &prim_ids_, &triangles_, &positions_, &objects_});
+            launches_.refit += refit_plan_.run(*dev_, refit_kernels_, method, refit_buffers());
             dev_->finish();
         }
         ft.refit_ms = ms(t0);
@@ -318,7 +326,7 @@ public:
     /// Only the refit stage (all dynamic trees), e.g. to time or compare methods.
     void refit(RefitMethod method) {
         ensure_program();
-        launches_.refit += refit_plan_.run(*dev_, refit_kernels_, method, {&nodes_, &prim_ids_, &triangles_, &positions_, &objects_});
+        launches_.refit += refit_plan_.run(*dev_, refit_kernels_, method, refit_buffers());
     }
 
     // ------------------------------------------------------------ tracing
@@ -326,15 +334,15 @@ public:
     void closest(const Buffer<Ray>& rays, Buffer<Hit>& hits, std::size_t n) {
         prepare_trace(rays, n);
         hits.reserve(*dev_, n);
-        set_args(k_closest_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, prim_ids_, triangles_,
-                 positions_, rays, hits, static_cast<std::uint32_t>(n));
+        set_args(k_closest_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays,
+                 hits, static_cast<std::uint32_t>(n));
         launches_.trace += launch(dev_->queue(), k_closest_, n, kTraceGroupSize);
     }
     void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
         prepare_trace(rays, n);
         occluded.reserve(*dev_, n);
-        set_args(k_any_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, prim_ids_, triangles_,
-                 positions_, rays, occluded, static_cast<std::uint32_t>(n));
+        set_args(k_any_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays,
+                 occluded, static_cast<std::uint32_t>(n));
         launches_.trace += launch(dev_->queue(), k_any_, n, kTraceGroupSize);
     }
     std::vector<Hit> closest(std::span<const Ray> rays) {
@@ -358,6 +366,11 @@ public:
 
     // ------------------------------------------------------------ inspection
 
+    // the whole arrays (DeviceSceneArrays), next to the per-object reads below
+    using DeviceSceneArrays::blocks;
+    using DeviceSceneArrays::nodes;
+    using DeviceSceneArrays::positions;
+
     const LaunchCounts& launches() const noexcept { return launches_; }
     const Program& program() {
         ensure_program();
@@ -379,10 +392,20 @@ public:
         if (!out.empty()) positions_.read(*dev_, std::span<float>(reinterpret_cast<float*>(out.data()), out.size() * 3), std::size_t(r.vertex_offset) * 3);
         return out;
     }
-    std::vector<Node> nodes(std::uint32_t object) {
+    std::vector<DeviceNode> nodes(std::uint32_t object) {
         const ObjectRecord& r = records_.at(object);
-        std::vector<Node> out(r.node_count);
-        nodes_.read(*dev_, std::span<Node>(out), r.node_offset);
+        std::vector<DeviceNode> out(r.node_count);
+        if (!out.empty()) nodes_.read(*dev_, std::span<DeviceNode>(out), r.node_offset);
+        return out;
+    }
+    /// An object's current triangle blocks (its tree's leaves).
+    std::vector<TriangleBlock4> blocks(std::uint32_t object) {
+        const ObjectRecord& r = records_.at(object);
+        std::size_t end = blocks_.size();  // the next object's first block in the buffer (dynamic objects come first)
+        for (const ObjectRecord& o : records_)
+            if (o.block_offset > r.block_offset) end = std::min<std::size_t>(end, o.block_offset);
+        std::vector<TriangleBlock4> out(end - r.block_offset);
+        if (!out.empty()) blocks_.read(*dev_, std::span<TriangleBlock4>(out), r.block_offset);
         return out;
     }
     std::vector<Vertex> moved_vertices(std::uint32_t object) {
@@ -415,6 +438,9 @@ private:
                                " is static");
     }
     void require_dynamic(std::uint32_t object, const char* what) const { (void)dynamic_slot(object, what); }
+    RefitBuffers refit_buffers() {
+        return {&nodes_, &blocks_, &triangles_, &positions_, &objects_};
+    }
 
     std::uint64_t used_hooks() const {
         std::uint64_t m = 0;

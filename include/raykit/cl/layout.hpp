@@ -4,7 +4,9 @@
 // headers named below) and in OpenCL C (kernels/raykit/kernels/layout.hpp).
 //
 //   C++                      OpenCL C      bytes
-//   raykit::Node             rk_node       32 (aligned 32)
+//   raykit::Node             rk_node       32 (aligned 32; the top level)
+//   cl::DeviceNode           rk_wnode      256 (aligned 64; WideNodeT<kDeviceWidth>, objects)
+//   raykit::TriangleBlock4   rk_block      160 (aligned 32; objects' leaves)
 //   raykit::Triangle         rk_triangle   12
 //   raykit::Vertex           rk_vertex     32
 //   raykit::Ray              rk_ray        32
@@ -24,13 +26,16 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "raykit/bvh/node.hpp"
+#include "raykit/bvh/wide.hpp"
 #include "raykit/cl/buffer.hpp"
 #include "raykit/cl/program.hpp"
 #include "raykit/intersect/slab.hpp"
 #include "raykit/intersect/triangle.hpp"
+#include "raykit/intersect/triangle4.hpp"
 #include "raykit/kernels/common.hpp"
 #include "raykit/kernels/layout.hpp"
 #include "raykit/math/hit.hpp"
@@ -40,6 +45,13 @@
 #include "raykit/scene/scene.hpp"
 
 namespace raykit::cl {
+
+/// Children per node of the objects' trees on the device (RK_WIDTH): the CPU's fastest path
+/// (BlockBvh8, every Scene query) walks the same 8-wide tree, so the device's traversal steps
+/// equal the CPU's node counts.
+inline constexpr int kDeviceWidth = 8;
+/// An object tree's node as the device sees it (rk_wnode; see cl/device_tree.hpp).
+using DeviceNode = WideNodeT<kDeviceWidth>;
 
 /// An instance as the device sees it (rk_instance).
 struct InstanceRecord {
@@ -54,7 +66,7 @@ struct InstanceRecord {
 struct ObjectRecord {
     std::uint32_t node_offset = 0;
     std::uint32_t node_count = 0;
-    std::uint32_t prim_offset = 0;
+    std::uint32_t block_offset = 0;  ///< first TriangleBlock4 of its tree's leaves
     std::uint32_t triangle_offset = 0;
     std::uint32_t vertex_offset = 0;
     std::uint32_t vertex_count = 0;
@@ -65,6 +77,13 @@ struct ObjectRecord {
 static_assert(sizeof(Node) == 32 && alignof(Node) == 32);
 static_assert(offsetof(Node, box) == 0 && offsetof(Node, index) == 24 && offsetof(Node, count) == 28);
 static_assert(offsetof(AABB, min) == 0 && offsetof(AABB, max) == 12);
+static_assert(sizeof(DeviceNode) == 32 * kDeviceWidth && alignof(DeviceNode) == 64);
+static_assert(offsetof(DeviceNode, planes) == 0 && offsetof(DeviceNode, index) == 24 * kDeviceWidth &&
+              offsetof(DeviceNode, count) == 28 * kDeviceWidth);
+static_assert(std::is_trivially_copyable_v<DeviceNode>);
+static_assert(sizeof(TriangleBlock4) == 160 && alignof(TriangleBlock4) == 32);
+static_assert(offsetof(TriangleBlock4, p) == 0 && offsetof(TriangleBlock4, prim) == 144);
+static_assert(std::is_trivially_copyable_v<TriangleBlock4>);
 static_assert(sizeof(Triangle) == 12 && alignof(Triangle) == 4 && offsetof(Triangle, v) == 0);
 static_assert(sizeof(Vertex) == 32 && alignof(Vertex) == 4);
 static_assert(offsetof(Vertex, position) == 0 && offsetof(Vertex, normal) == 12 && offsetof(Vertex, uv) == 24);
@@ -82,7 +101,7 @@ static_assert(sizeof(InstanceRecord) == 112 && alignof(InstanceRecord) == 4);
 static_assert(offsetof(InstanceRecord, world_to_object) == 0 && offsetof(InstanceRecord, object_to_world) == 48 &&
               offsetof(InstanceRecord, object) == 96 && offsetof(InstanceRecord, identity) == 100);
 static_assert(sizeof(ObjectRecord) == 32 && alignof(ObjectRecord) == 4);
-static_assert(offsetof(ObjectRecord, node_count) == 4 && offsetof(ObjectRecord, prim_offset) == 8 &&
+static_assert(offsetof(ObjectRecord, node_count) == 4 && offsetof(ObjectRecord, block_offset) == 8 &&
               offsetof(ObjectRecord, triangle_offset) == 12 && offsetof(ObjectRecord, vertex_offset) == 16 &&
               offsetof(ObjectRecord, vertex_count) == 20 && offsetof(ObjectRecord, triangle_count) == 24);
 static_assert(std::is_trivially_copyable_v<InstanceRecord> && std::is_trivially_copyable_v<ObjectRecord> &&
@@ -109,6 +128,13 @@ inline std::vector<LayoutEntry> layout_entries() {
     off("rk_node", "max", offsetof(Node, box) + offsetof(AABB, max));
     off("rk_node", "index", offsetof(Node, index));
     off("rk_node", "count", offsetof(Node, count));
+    size("rk_wnode", sizeof(DeviceNode), alignof(DeviceNode));
+    off("rk_wnode", "planes", offsetof(DeviceNode, planes));
+    off("rk_wnode", "index", offsetof(DeviceNode, index));
+    off("rk_wnode", "count", offsetof(DeviceNode, count));
+    size("rk_block", sizeof(TriangleBlock4), alignof(TriangleBlock4));
+    off("rk_block", "p", offsetof(TriangleBlock4, p));
+    off("rk_block", "prim", offsetof(TriangleBlock4, prim));
     size("rk_triangle", sizeof(Triangle), alignof(Triangle));
     off("rk_triangle", "v", offsetof(Triangle, v));
     size("rk_vertex", sizeof(Vertex), alignof(Vertex));
@@ -141,7 +167,7 @@ inline std::vector<LayoutEntry> layout_entries() {
     size("rk_object", sizeof(ObjectRecord), alignof(ObjectRecord));
     off("rk_object", "node_offset", offsetof(ObjectRecord, node_offset));
     off("rk_object", "node_count", offsetof(ObjectRecord, node_count));
-    off("rk_object", "prim_offset", offsetof(ObjectRecord, prim_offset));
+    off("rk_object", "block_offset", offsetof(ObjectRecord, block_offset));
     off("rk_object", "triangle_offset", offsetof(ObjectRecord, triangle_offset));
     off("rk_object", "vertex_offset", offsetof(ObjectRecord, vertex_offset));
     off("rk_object", "vertex_count", offsetof(ObjectRecord, vertex_count));
@@ -170,6 +196,7 @@ inline constexpr HostFloatConfig host_float_config() noexcept { return {}; }
 inline std::string config_source() {
     const HostFloatConfig f = host_float_config();
     return "#define RK_MAX_DEPTH " + std::to_string(RAYKIT_BVH_MAX_DEPTH) + "\n" +
+           "#define RK_WIDTH " + std::to_string(kDeviceWidth) + "\n" +
            "#define RK_SLAB_EXIT_SCALE " + hex_float(kSlabExitScale) + "\n" +
            "#define RK_FUSE_MSUB " + (f.fuse_msub ? "1" : "0") + "\n" +
            "#define RK_FUSE_T " + (f.fuse_tnum ? "1" : "0") + "\n";

@@ -1,17 +1,19 @@
-// raykit/cl/refit.hpp — refitting BVHs on the device, two ways.
+// raykit/cl/refit.hpp — refitting the objects' wide trees on the device, two ways.
 //
 //   RefitPlan plan(dev, trees);           // once per topology: level and parent tables
 //   plan.run(dev, kernels, RefitMethod::one_pass, buffers);   // per frame
 //
 // Both methods give boxes bit-identical to raykit::refit on the CPU (same
 // floats selected by the same min/max rules, see kernels/raykit/kernels/refit.hpp):
+// the CPU's BlockBvh8 refitted in place, and rewrite the refitted trees'
+// blocks from the current vertices.
 //
 //   level_wise  one launch per tree level, deepest level first; the levels of
 //               all trees are concatenated (one table; level L of every tree
 //               is one contiguous run), so L launches refit any number of trees.
-//   one_pass    one launch over the leaves of all trees; each leaf walks up
-//               through a parent array and the second child to arrive at a
-//               node computes it (atomic counters, reset by that child).
+//   one_pass    one launch over the nodes without inner children of all trees;
+//               each walks up through a parent array and the last inner child
+//               to arrive at a node computes it (atomic counters, reset by it).
 //
 // Trees live in one concatenated node buffer at known offsets; the plan keeps
 // parent and counter arrays for global node indices [0, node_space), so put
@@ -25,6 +27,7 @@
 #include <vector>
 
 #include "raykit/bvh/node.hpp"
+#include "raykit/cl/device_tree.hpp"
 #include "raykit/cl/buffer.hpp"
 #include "raykit/cl/layout.hpp"
 #include "raykit/cl/program.hpp"
@@ -38,10 +41,10 @@ inline const char* refit_method_name(RefitMethod m) noexcept {
     return m == RefitMethod::level_wise ? "level-wise" : "one-pass";
 }
 
-/// One tree to refit: its nodes sit at node_offset in the node buffer and
-/// `object` indexes the ObjectRecord table (for its prim/triangle/vertex offsets).
+/// One tree to refit: its nodes (device_tree()'s, as uploaded) sit at node_offset in the node
+/// buffer and `object` indexes the ObjectRecord table (for its prim/triangle/vertex offsets).
 struct RefitTree {
-    const Bvh* bvh = nullptr;
+    std::span<const DeviceNode> nodes;
     std::uint32_t object = 0;
     std::uint32_t node_offset = 0;
 };
@@ -51,8 +54,8 @@ inline SourcePart refit_part() { return {"raykit/kernels/refit.hpp", kernels::kR
 
 /// The device buffers a refit reads and writes.
 struct RefitBuffers {
-    Buffer<Node>* nodes;
-    const Buffer<std::uint32_t>* prim_ids;
+    Buffer<DeviceNode>* nodes;
+    Buffer<TriangleBlock4>* blocks;  ///< rewritten for the refitted trees' leaves
     const Buffer<Triangle>* triangles;
     const Buffer<float>* positions;
     const Buffer<ObjectRecord>* objects;
@@ -71,29 +74,30 @@ public:
     RefitPlan() = default;
     RefitPlan(Device& dev, std::span<const RefitTree> trees) {
         std::size_t space = 0;
-        for (const RefitTree& t : trees) space = std::max<std::size_t>(space, std::size_t(t.node_offset) + t.bvh->nodes.size());
+        for (const RefitTree& t : trees) space = std::max<std::size_t>(space, std::size_t(t.node_offset) + t.nodes.size());
         if (space >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::RefitPlan: too many nodes");
-        std::vector<std::uint32_t> parents(space, kInvalidIndex);
+        std::vector<std::uint32_t> parents(space, kInvalidIndex), needs(space, 0u);
         std::vector<std::vector<cl_uint2>> levels;
-        std::vector<cl_uint2> leaves;
+        std::vector<cl_uint2> starts;
         std::vector<int> depth;
         for (const RefitTree& t : trees) {
-            const NodeArray& nodes = t.bvh->nodes;
-            depth.assign(nodes.size(), 0);
-            for (std::size_t i = 0; i < nodes.size(); ++i) {
-                const Node& n = nodes[i];
+            depth.assign(t.nodes.size(), 0);
+            for (std::size_t i = 0; i < t.nodes.size(); ++i) {
+                const DeviceNode& n = t.nodes[i];
                 const auto g = static_cast<cl_uint>(t.node_offset + i);
                 if (levels.size() <= std::size_t(depth[i])) levels.resize(depth[i] + 1);
                 levels[depth[i]].push_back(cl_uint2{{g, t.object}});
-                if (n.is_leaf()) {
-                    leaves.push_back(cl_uint2{{g, t.object}});
-                } else {
-                    if (n.index + 1 >= nodes.size() || n.index <= i)
-                        throw std::invalid_argument("raykit::cl::RefitPlan: tree is not in pre-order");
-                    depth[n.index] = depth[n.index + 1] = depth[i] + 1;
-                    parents[t.node_offset + n.index] = parents[t.node_offset + n.index + 1] = g;
+                for (int c = 0; c < kDeviceWidth; ++c) {
+                    if (n.count[c] != 0 || n.unused(c)) continue;
+                    if (n.index[c] >= t.nodes.size() || n.index[c] <= i)
+                        throw std::invalid_argument("raykit::cl::RefitPlan: a child does not come after its parent");
+                    depth[n.index[c]] = depth[i] + 1;
+                    parents[t.node_offset + n.index[c]] = g;
+                    ++needs[g];
                 }
             }
+            for (std::size_t i = 0; i < t.nodes.size(); ++i)
+                if (needs[t.node_offset + i] == 0) starts.push_back(cl_uint2{{static_cast<cl_uint>(t.node_offset + i), t.object}});
         }
         // deepest level first, each level one contiguous run
         std::vector<cl_uint2> entries;
@@ -101,11 +105,13 @@ public:
             level_ranges_.push_back({static_cast<std::uint32_t>(entries.size()), static_cast<std::uint32_t>(levels[l].size())});
             entries.insert(entries.end(), levels[l].begin(), levels[l].end());
         }
-        leaf_count_ = leaves.size();
+        start_count_ = starts.size();
         node_count_ = entries.size();
+        if (node_count_ == 0) return;
         entries_ = Buffer<cl_uint2>(dev, entries, CL_MEM_READ_ONLY);
-        leaves_ = Buffer<cl_uint2>(dev, leaves, CL_MEM_READ_ONLY);
+        starts_ = Buffer<cl_uint2>(dev, starts, CL_MEM_READ_ONLY);
         parents_ = Buffer<std::uint32_t>(dev, parents, CL_MEM_READ_ONLY);
+        needs_ = Buffer<std::uint32_t>(dev, needs, CL_MEM_READ_ONLY);
         counters_ = Buffer<std::uint32_t>(dev, std::vector<std::uint32_t>(space, 0u), CL_MEM_READ_WRITE);
     }
 
@@ -115,19 +121,22 @@ public:
         std::size_t launches = 0;
         if (method == RefitMethod::level_wise) {
             for (const auto& [first, count] : level_ranges_) {
-                set_args(k.level, *b.nodes, *b.prim_ids, *b.triangles, *b.positions, *b.objects, entries_, first, count);
+                set_args(k.level, *b.nodes, *b.blocks, *b.triangles, *b.positions, *b.objects, entries_, first, count);
                 launches += launch(dev.queue(), k.level, count, kGroup);
             }
         } else {
-            set_args(k.one_pass, *b.nodes, *b.prim_ids, *b.triangles, *b.positions, *b.objects, leaves_, parents_,
-                     counters_, static_cast<std::uint32_t>(leaf_count_));
-            launches += launch(dev.queue(), k.one_pass, leaf_count_, kGroup);
+            set_args(k.one_pass, *b.nodes, *b.blocks, *b.triangles, *b.positions, *b.objects, starts_, parents_, needs_,
+                     counters_, static_cast<std::uint32_t>(start_count_));
+            launches += launch(dev.queue(), k.one_pass, start_count_, kGroup);
         }
         return launches;
     }
 
+    /// Launches of the level-wise method (tree levels, node 0 included).
     std::size_t levels() const noexcept { return level_ranges_.size(); }
-    std::size_t leaves() const noexcept { return leaf_count_; }
+    /// Work items of the one-pass method: nodes without inner children.
+    std::size_t leaves() const noexcept { return start_count_; }
+    /// Wide nodes refitted.
     std::size_t nodes() const noexcept { return node_count_; }
 
 private:
@@ -136,9 +145,9 @@ private:
         std::uint32_t first, count;
     };
     std::vector<Range> level_ranges_;
-    std::size_t leaf_count_ = 0, node_count_ = 0;
-    Buffer<cl_uint2> entries_, leaves_;
-    Buffer<std::uint32_t> parents_, counters_;
+    std::size_t start_count_ = 0, node_count_ = 0;
+    Buffer<cl_uint2> entries_, starts_;
+    Buffer<std::uint32_t> parents_, needs_, counters_;
 };
 
 }  // namespace raykit::cl

@@ -15,7 +15,7 @@
 //   Image img = r.render_hook<MyHook>(cam, set, params);       // a user ray hook
 //   r.set_lights(lights);                                      // replaces the lights
 //
-// Scenes: the renderer binds the DeviceScene's arrays (nodes, prim ids, triangles, positions,
+// Scenes: the renderer binds the DeviceScene's arrays (nodes, triangle blocks, triangles, positions,
 // rk_vertex records, object and instance records, top-level tree) and adds what shading needs:
 // the objects' material tables concatenated (ShadeObjectRecord: each object's offset, count and
 // vertex attributes), their material ids at each object's triangle_offset, the textures, the
@@ -433,7 +433,7 @@ public:
                 hits_.reserve(dev, n);
                 steps_.reserve(dev, want_steps ? n : 1);
                 set_args(k.closest, sc.top_nodes(), sc.top_count(), sc.top_ids(), sc.instances(), sc.objects(),
-                         sc.nodes(), sc.prim_ids(), sc.triangles(), sc.positions(), queue_, hits_, steps_,
+                         sc.nodes(), sc.blocks(), sc.triangles(), queue_, hits_, steps_,
                          static_cast<std::uint32_t>(n), sc.vertices(), material_ids_, shade_objects_, materials_,
                          textures_, texels_, rec);
                 launch(dev.queue(), k.closest, n, kTraceGroupSize, &events.emplace_back(Stage::trace, slot).event);
@@ -456,7 +456,7 @@ public:
                 const std::size_t shadow_n = std::min<std::size_t>(cnt[1], shadow_cap);
                 if (shadow_n > 0) {
                     set_args(k.shadow, sc.top_nodes(), sc.top_count(), sc.top_ids(), sc.instances(), sc.objects(),
-                             sc.nodes(), sc.prim_ids(), sc.triangles(), sc.positions(), shadow_,
+                             sc.nodes(), sc.blocks(), sc.triangles(), shadow_,
                              static_cast<std::uint32_t>(shadow_n), image_, sc.vertices(), material_ids_,
                              shade_objects_, materials_, textures_, texels_, rec);
                     launch(dev.queue(), k.shadow, shadow_n, kTraceGroupSize,

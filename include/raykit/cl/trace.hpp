@@ -5,9 +5,10 @@
 //   std::vector<std::uint32_t> occ = tracer.any(rays);      // 1 = occluded, 0 = free
 //
 // The kernels (kernels/raykit/kernels/trace.hpp) are the twins of
-// scene/trace.hpp with the Watertight test: the same traversal order, the
-// same tie rule (smaller t, then smaller triangle index), a stack of
-// RAYKIT_BVH_MAX_DEPTH entries. On a device with cl_khr_fp64 the edge
+// scene/trace.hpp's closest_hit / any_hit over the WideBvh8 collapsed from the
+// given tree, with the Watertight test: the same traversal order, the same tie
+// rule (smaller t, then smaller triangle index), the same stack bound; the
+// triangles are read from 4-triangle blocks in leaf order (cl/device_tree.hpp). On a device with cl_khr_fp64 the edge
 // functions are evaluated in double like the CPU's; the two expressions a
 // compiler may fuse into fma are fused on the device exactly when the host
 // build fuses them (RAYKIT_FAST_FMA, cl/layout.hpp host_float_config()); division is
@@ -28,6 +29,7 @@
 #include <vector>
 
 #include "raykit/cl/buffer.hpp"
+#include "raykit/cl/device_tree.hpp"
 #include "raykit/cl/layout.hpp"
 #include "raykit/cl/program.hpp"
 #include "raykit/kernels/camera.hpp"
@@ -65,40 +67,35 @@ inline void camera_rays(Device& dev, ::cl::Kernel& k, const CameraFrame& frame, 
 
 class MeshTracer {
 public:
-    /// Uploads the mesh (positions, triangles) and the tree; `extra_options`
-    /// go to trace_program().
+    /// Uploads the tree in the device's form (device_tree() of BlockBvh8::make(mesh, bvh): 8-wide
+    /// nodes over 4-triangle blocks); `extra_options` go to trace_program().
     MeshTracer(Device& dev, const MeshView& mesh, const Bvh& bvh, const std::string& extra_options = {}) : dev_(&dev) {
-        if (bvh.prim_ids.size() != mesh.size())
-            throw std::invalid_argument("raykit::cl::MeshTracer: tree and mesh differ in triangle count");
-        if (mesh.positions.size() >= 0x55555555u || bvh.nodes.size() >= 0xFFFFFFFFu)
+        if (mesh.positions.size() >= 0x55555555u || mesh.size() >= 0x55555555u)
             throw std::length_error("raykit::cl::MeshTracer: mesh too large for 32-bit indices");
         program_ = trace_program(dev, extra_options);
         k_closest_ = program_.kernel("rk_mesh_closest");
         k_any_ = program_.kernel("rk_mesh_any");
         k_camera_ = program_.kernel("rk_camera_rays");
-        positions_ = Buffer<float>(dev, float_span(mesh.positions), CL_MEM_READ_WRITE);
-        triangles_ = Buffer<Triangle>(dev, mesh.triangles, CL_MEM_READ_ONLY);
-        update_tree(bvh);
+        update_tree(mesh, bvh);
     }
 
-    /// Replaces the tree's nodes (e.g. after a refit; same prim_ids) or the whole tree.
-    void update_tree(const Bvh& bvh) {
-        nodes_ = Buffer<Node>(*dev_, std::span<const Node>(bvh.nodes.data(), bvh.nodes.size()), CL_MEM_READ_WRITE);
-        prim_ids_ = Buffer<std::uint32_t>(*dev_, bvh.prim_ids, CL_MEM_READ_ONLY);
-        node_count_ = static_cast<std::uint32_t>(bvh.nodes.size());
-    }
-    /// Replaces the vertex positions (same count).
-    void update_positions(std::span<const vec3> positions) {
-        if (positions.size() * 3 != positions_.size())
-            throw std::invalid_argument("raykit::cl::MeshTracer::update_positions: vertex count changed");
-        positions_.write(*dev_, float_span(positions));
+    /// Replaces the tree and its blocks (e.g. after the vertices moved and `bvh` was refitted
+    /// or rebuilt over `mesh`).
+    void update_tree(const MeshView& mesh, const Bvh& bvh) {
+        if (bvh.prim_ids.size() != mesh.size())
+            throw std::invalid_argument("raykit::cl::MeshTracer: tree and mesh differ in triangle count");
+        const DeviceTree tree = device_tree(BlockBvhT<kDeviceWidth>::make(mesh, bvh));
+        if (tree.nodes.size() >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::MeshTracer: tree too large");
+        nodes_ = Buffer<DeviceNode>(*dev_, tree.nodes, CL_MEM_READ_ONLY);
+        blocks_ = Buffer<TriangleBlock4>(*dev_, tree.blocks, CL_MEM_READ_ONLY);
+        node_count_ = static_cast<std::uint32_t>(tree.nodes.size());
     }
 
     /// Closest hits of rays[0..n) into hits (device-resident; asynchronous).
     void closest(const Buffer<Ray>& rays, Buffer<Hit>& hits, std::size_t n) {
         check_count(rays, n);
         hits.reserve(*dev_, n);
-        set_args(k_closest_, nodes_, prim_ids_, triangles_, positions_, node_count_, rays, hits,
+        set_args(k_closest_, nodes_, blocks_, node_count_, rays, hits,
                  static_cast<std::uint32_t>(n));
         launches_ += launch(dev_->queue(), k_closest_, n, kTraceGroupSize);
     }
@@ -106,7 +103,7 @@ public:
     void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
         check_count(rays, n);
         occluded.reserve(*dev_, n);
-        set_args(k_any_, nodes_, prim_ids_, triangles_, positions_, node_count_, rays, occluded,
+        set_args(k_any_, nodes_, blocks_, node_count_, rays, occluded,
                  static_cast<std::uint32_t>(n));
         launches_ += launch(dev_->queue(), k_any_, n, kTraceGroupSize);
     }
@@ -134,8 +131,10 @@ public:
     const Program& program() const noexcept { return program_; }
     /// Kernel launches so far.
     std::size_t launches() const noexcept { return launches_; }
-    Buffer<float>& positions() noexcept { return positions_; }
-    Buffer<Node>& nodes() noexcept { return nodes_; }
+    /// The tree's nodes (device_tree()).
+    Buffer<DeviceNode>& nodes() noexcept { return nodes_; }
+    /// The leaves' triangle blocks.
+    Buffer<TriangleBlock4>& blocks() noexcept { return blocks_; }
 
 private:
     static void check_count(const Buffer<Ray>& rays, std::size_t n) {
@@ -146,10 +145,8 @@ private:
     Device* dev_;
     Program program_;
     ::cl::Kernel k_closest_, k_any_, k_camera_;
-    Buffer<float> positions_;
-    Buffer<Triangle> triangles_;
-    Buffer<Node> nodes_;
-    Buffer<std::uint32_t> prim_ids_;
+    Buffer<DeviceNode> nodes_;
+    Buffer<TriangleBlock4> blocks_;
     std::uint32_t node_count_ = 0;
     std::size_t launches_ = 0;
 };

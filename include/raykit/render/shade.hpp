@@ -214,7 +214,7 @@ struct ShadeScene {
     std::span<const Light> lights;
     AABB bounds;                 ///< scene_bounds() (depth and ao defaults)
     bool alpha_testing = false;  ///< some material is alpha-tested
-    SceneTrees trees = SceneTrees::blocks;  ///< what the traversals walk (binary: the device's node counts)
+    SceneTrees trees = SceneTrees::blocks;  ///< what the traversals walk (blocks: also the device's trees and node counts)
 
     /// The mesh of instance `inst`'s object.
     const Mesh& mesh_of(std::uint32_t inst) const noexcept { return scene->objects()[scene->instances()[inst].object].mesh; }

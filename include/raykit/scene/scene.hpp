@@ -13,10 +13,10 @@
 //
 // An object is a Mesh with its own bottom-level tree, built once by
 // BinnedSahBuilder (by default with BlockBvh8::sah_config(): leaf cost in
-// blocks of 4, leaves up to 12) and kept in two forms: the binary Bvh (what
-// the device uploads and refits) and the BlockBvh8 made from it (8-wide nodes,
-// 4-triangle blocks: what every CPU query walks, the fastest CPU path; see
-// scene/block_bvh.hpp). A static object never changes after add_object(). A
+// blocks of 4, leaves up to 12) and kept in two forms: the binary Bvh and
+// the BlockBvh8 made from it (8-wide nodes, 4-triangle blocks: what every CPU
+// query walks, the fastest CPU path, and what the device uploads and refits;
+// see scene/block_bvh.hpp, cl/device_tree.hpp). A static object never changes after add_object(). A
 // dynamic object keeps an untouched rest copy of its vertices (position,
 // normal, uv): move_vertices() computes every current vertex from its rest
 // vertex — never from last frame's — and refits both forms in place (topology
@@ -44,7 +44,7 @@
 // Queries are closest_hit / any_hit of scene/trace.hpp: the top-level tree
 // over a leaf store of instances, whose leaves run closest_hit / any_hit on
 // the object's tree (SceneTrees::blocks, the default, or the binary Bvh with
-// SceneTrees::binary: the same answers, the device's node counts). An
+// SceneTrees::binary: the same answers, the binary tree's node counts). An
 // optional filter keep(instance, prim, u, v) rejects candidate hits (alpha
 // cut-outs); optional TraversalStats count the bottom-level trees' nodes and
 // leaves (the top level is not counted, so a one-instance scene counts what
@@ -155,7 +155,7 @@ enum class TreeUpdate { refit, rebuild };
 
 struct SceneObject {
     Mesh mesh;  ///< current geometry (for a dynamic object: as last moved)
-    Bvh bvh;           ///< the built tree (the device's)
+    Bvh bvh;           ///< the built tree (blocks is made from it)
     BlockBvh8 blocks;  ///< made from bvh: what CPU queries walk
     BinnedSahBuilder::Config config;  ///< how bvh was built (rebuild_object builds the same way)
     ObjectKind kind = ObjectKind::static_object;

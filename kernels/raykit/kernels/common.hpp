@@ -53,6 +53,8 @@ typedef struct {
     float inv[3];
     int nearo[3];
     int faro[3];
+    int wnear[3];  /* the same for a wide node: offsets of the near / far plane rows of rk_wnode */
+    int wfar[3];
     float tmin;
 } rk_slab_ray;
 
@@ -64,6 +66,8 @@ RK_INLINE rk_slab_ray rk_slab_prepare(const float org[3], const float dir[3], fl
         const int neg = signbit(dir[a]) ? 1 : 0;
         s.nearo[a] = neg ? 3 + a : a;
         s.faro[a] = neg ? a : 3 + a;
+        s.wnear[a] = (2 * a + neg) * RK_WIDTH;
+        s.wfar[a] = (2 * a + 1 - neg) * RK_WIDTH;
     }
     s.tmin = tmin;
     return s;
@@ -81,6 +85,47 @@ RK_INLINE bool rk_slab(const rk_slab_ray* s, __global const rk_node* n, float tm
     }
     *tentry = t0;
     return t0 <= t1;
+}
+
+/* The RK_WIDTH children of a wide node at once (raykit::WideSlabRay::test, bvh/traverse_wide.hpp):
+   per child the same (plane − origin)·(1/d) distances, NaN candidates never deciding, the axes
+   in the CPU's order (z, y, x), the exit widened once after the minimum. Writes the entry
+   distances to td[0 .. RK_WIDTH) and returns a bit per child entered. */
+#if RK_WIDTH == 8
+#define RK_FW float8
+#define RK_IW int8
+#define RK_VLOADW vload8
+#define RK_VSTOREW vstore8
+#elif RK_WIDTH == 4
+#define RK_FW float4
+#define RK_IW int4
+#define RK_VLOADW vload4
+#define RK_VSTOREW vstore4
+#else
+#error "RK_WIDTH must be 4 or 8"
+#endif
+RK_INLINE uint rk_wslab(const rk_slab_ray* s, __global const rk_wnode* n, float tmax, float* td) {
+    __global const float* f = (__global const float*)n;
+    RK_FW t0 = (RK_FW)(s->tmin), t1 = (RK_FW)(tmax);
+#define RK_WSLAB_AXIS(a)                                                            \
+    {                                                                               \
+        const RK_FW tn = (RK_VLOADW(0, f + s->wnear[a]) - s->org[a]) * s->inv[a];  \
+        const RK_FW tf = (RK_VLOADW(0, f + s->wfar[a]) - s->org[a]) * s->inv[a];   \
+        t0 = select(t0, tn, isgreater(tn, t0));                                     \
+        t1 = select(t1, tf, isless(tf, t1));                                        \
+    }
+    RK_WSLAB_AXIS(2) RK_WSLAB_AXIS(1) RK_WSLAB_AXIS(0)  /* unrolled: PoCL kept the loop */
+#undef RK_WSLAB_AXIS
+    t1 = t1 * RK_SLAB_EXIT_SCALE;
+    RK_VSTOREW(t0, 0, td);
+#if RK_WIDTH == 8
+    const int8 h = islessequal(t0, t1) & (int8)(1, 2, 4, 8, 16, 32, 64, 128);
+    const int4 h4 = h.lo | h.hi;
+#else
+    const int4 h4 = islessequal(t0, t1) & (int4)(1, 2, 4, 8);
+#endif
+    const int2 h2 = h4.lo | h4.hi;
+    return (uint)(h2.x | h2.y);
 }
 
 /* raykit::Watertight */
@@ -195,6 +240,71 @@ RK_INLINE bool rk_wt_intersect(const rk_wt_ray* d, float3 p0, float3 p1, float3 
     *u_out = V * inv;
     *v_out = W * inv;
     return true;
+}
+/* raykit::Watertight4 (intersect/triangle4.hpp): rk_wt_intersect on the four lanes of a block at
+   once, the same operations lane by lane (so every lane gives the scalar test's answer bit for
+   bit). Returns a bit per lane hit in [tmin, tmax]; *t, *u, *v hold every lane's values. */
+RK_INLINE float4 rk_msub4(float4 a, float s, float4 b) {
+#pragma OPENCL FP_CONTRACT OFF
+#if RK_FUSE_MSUB
+    return fma((float4)(-s), b, a);
+#else
+    return a - s * b;
+#endif
+}
+RK_INLINE uint rk_wt4_intersect(const rk_wt_ray* d, __global const rk_block* b, float tmin, float tmax,
+                                float4* t_out, float4* u_out, float4* v_out) {
+#pragma OPENCL FP_CONTRACT OFF
+    __global const float* P = &b->p[0][0];
+    const int ox = 4 * d->kx, oy = 4 * d->ky, oz = 4 * d->kz;
+    const float orgx = d->org[d->kx], orgy = d->org[d->ky], orgz = d->org[d->kz];
+    const float4 az = vload4(0, P + oz) - orgz, bz = vload4(0, P + 12 + oz) - orgz, cz = vload4(0, P + 24 + oz) - orgz;
+    const float4 Ax = rk_msub4(vload4(0, P + ox) - orgx, d->sx, az), Ay = rk_msub4(vload4(0, P + oy) - orgy, d->sy, az);
+    const float4 Bx = rk_msub4(vload4(0, P + 12 + ox) - orgx, d->sx, bz), By = rk_msub4(vload4(0, P + 12 + oy) - orgy, d->sy, bz);
+    const float4 Cx = rk_msub4(vload4(0, P + 24 + ox) - orgx, d->sx, cz), Cy = rk_msub4(vload4(0, P + 24 + oy) - orgy, d->sy, cz);
+    float4 U, V, W, det;
+    int4 reject;
+#if RK_EDGE_DOUBLE
+    const double4 Ud = convert_double4(Cx) * convert_double4(By) - convert_double4(Cy) * convert_double4(Bx);
+    const double4 Vd = convert_double4(Ax) * convert_double4(Cy) - convert_double4(Ay) * convert_double4(Cx);
+    const double4 Wd = convert_double4(Bx) * convert_double4(Ay) - convert_double4(By) * convert_double4(Ax);
+    const double4 detd = Ud + Vd + Wd;
+    const long4 neg = (Ud < 0.0) | (Vd < 0.0) | (Wd < 0.0), pos = (Ud > 0.0) | (Vd > 0.0) | (Wd > 0.0);
+    reject = convert_int4((neg & pos) | (detd == 0.0) | isnan(detd));
+    if (all(reject)) return 0u;
+    U = convert_float4(Ud);
+    V = convert_float4(Vd);
+    W = convert_float4(Wd);
+    det = convert_float4(detd);
+#else
+    U = Cx * By - Cy * Bx;
+    V = Ax * Cy - Ay * Cx;
+    W = Bx * Ay - By * Ax;
+    const int4 neg = (U < 0.0f) | (V < 0.0f) | (W < 0.0f), pos = (U > 0.0f) | (V > 0.0f) | (W > 0.0f);
+    reject = neg & pos;
+    if (all(reject)) return 0u;
+    det = U + V + W;
+#endif
+    const float4 Az = d->sz * az, Bz = d->sz * bz, Cz = d->sz * cz;
+#if RK_FUSE_T
+    const float4 T = fma(W, Cz, fma(U, Az, V * Bz));
+#else
+    const float4 T = U * Az + V * Bz + W * Cz;
+#endif
+    const float4 inv = 1.0f / det;
+    const float4 t = T * inv;
+    const int4 ok = ~reject & (det != 0.0f) & (t >= tmin) & (t <= tmax);
+    *t_out = t;
+    *u_out = V * inv;
+    *v_out = W * inv;
+    uint m = (ok.x ? 1u : 0u) | (ok.y ? 2u : 0u) | (ok.z ? 4u : 0u) | (ok.w ? 8u : 0u);
+    for (uint k = m; k; k &= k - 1u) {  /* the scalar test's last check, on hit lanes only */
+        const int i = 31 - (int)clz(k & (0u - k));
+        const float3 p0 = (float3)(P[i], P[4 + i], P[8 + i]), p1 = (float3)(P[12 + i], P[16 + i], P[20 + i]),
+                     p2 = (float3)(P[24 + i], P[28 + i], P[32 + i]);
+        if (rk_degenerate(p0, p1, p2)) m &= ~(1u << i);
+    }
+    return m;
 }
 )CLC";
 

@@ -11,14 +11,33 @@
 namespace raykit::kernels {
 
 inline constexpr const char* kLayout = R"CLC(
-/* BVH node (raykit::Node): leaf when count > 0 (prims prim_ids[index..index+count)),
-   else inner with children at index, index + 1 (relative to the tree's first node). */
+/* Binary BVH node (raykit::Node), the top level's: leaf when count > 0 (instances
+   top_ids[index..index+count)), else inner with children at index, index + 1. */
 typedef struct __attribute__((aligned(32))) {
     float min[3];
     float max[3];
     uint index;
     uint count;
 } rk_node;
+
+/* Wide BVH node (raykit::WideNodeT<RK_WIDTH>, cl/device_tree.hpp): the RK_WIDTH children's
+   boxes as planes[axis * 2 + (0 lo, 1 hi)][child]; per child an index and a count:
+   count > 0: a leaf of `count` triangle blocks from block `index` of the object; count == 0,
+   index != 0: an inner child (node `index` of the
+   object); both 0: an unused slot (empty box). Node 0 of an object holds only its root box
+   (slot 0, the inner child 1): the twin of the CPU's first test of WideBvhT::bounds. */
+typedef struct __attribute__((aligned(64))) {
+    float planes[6][RK_WIDTH];
+    uint index[RK_WIDTH];
+    uint count[RK_WIDTH];
+} rk_wnode;
+
+/* Four triangles' vertices in leaf order (raykit::TriangleBlock4): p[3 * corner + axis][lane];
+   unused lanes repeat the leaf's last triangle. */
+typedef struct __attribute__((aligned(32))) {
+    float p[9][4];
+    uint prim[4];
+} rk_block;
 
 /* Triangle (raykit::Triangle): three vertex indices, relative to the object's first vertex. */
 typedef struct {
@@ -73,12 +92,12 @@ typedef struct {
 } rk_instance;
 
 /* Object (raykit::cl::ObjectRecord): where its parts start in the scene's
-   concatenated node, prim_ids, triangle and vertex arrays. Node indices,
-   prim_ids and triangle vertex indices stored there are relative to them. */
+   concatenated node, block, triangle and vertex arrays. Node and block indices
+   and triangle vertex indices stored there are relative to them. */
 typedef struct {
     uint node_offset;
     uint node_count;
-    uint prim_offset;
+    uint block_offset;
     uint triangle_offset;
     uint vertex_offset;
     uint vertex_count;

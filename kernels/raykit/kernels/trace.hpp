@@ -1,20 +1,42 @@
 // raykit/kernels/trace.hpp — the one closest-hit / any-hit walk on the device.
 //
 // rk_walk() is the twin of raykit::closest_hit / any_hit over a Scene
-// (scene/trace.hpp + Scene's instance leaves): the same front-to-back order
-// (nearer child first, the left one on equal entry distances), the same
-// pruning (a popped node is skipped when its entry is beyond
+// (scene/trace.hpp + Scene's instance leaves) walking SceneTrees::blocks, the
+// CPU's fastest form: the same trees, the same order, the same pruning (a
+// popped entry is skipped when its entry distance is beyond
 // tmax·RK_SLAB_EXIT_SCALE), the same tie rule (smaller t, then smaller
 // instance, then smaller triangle). Both levels are walked by one function:
 // a top-level leaf enters its instances one after the other (the ray mapped
 // into the object's space, an identity instance's ray used as it is); each
-// object's walk is an inner loop (the hot one, as tight as a plain mesh
-// walk) on the same stack above the top level's entries and, when its part
-// of the stack is empty, hands back to the next instance or the top level.
-// A plain mesh is the walk of one object with no top level (mesh mode).
-// Each level's stack holds RK_MAX_DEPTH entries; the CPU throws on a deeper
-// tree, here the walk stops with the hits found so far (raykit's builders
-// never emit such trees).
+// object's walk is an inner loop (the hot one, as tight as a plain mesh walk)
+// on its own stack and, when that is empty, hands back to the next instance
+// or the top level. A plain mesh is the walk of one object with no top level
+// (mesh mode).
+//
+// Objects: 8-wide nodes (rk_wnode, cl/device_tree.hpp) whose leaves are runs
+// of 4-triangle blocks (rk_block), as raykit::traverse walks a WideBvh8 over
+// BlockLeaves: node 0 holds the root box alone (the CPU's first test of
+// WideBvhT::bounds, not counted as a step); at a node the 8 child boxes are
+// tested at once (rk_wslab), the entered children sorted by entry distance
+// (ties in slot order), the nearest entered and the others pushed far to
+// near (any hit: pushed in slot order); a block is tested 4 lanes at once
+// (rk_wt4_intersect), lanes taken in order. The binary walk over prim_ids →
+// triangle → vertex indices → positions it replaces was slower everywhere
+// measured (bench_cl, PoCL on this 2-core machine, process CPU ms per 262 144
+// rays, binary → wide + blocks: torus100k primary closest 29.5 → 19.2,
+// random closest 143 → 110, bunny primary closest 24.2 → 15.6, random
+// closest 100 → 71); 8-wide nodes over per-triangle leaves without blocks
+// were within noise of the blocks on these rows.
+// The top level stays binary (rk_node, bvh/traverse.hpp's order: nearer child
+// first, the left one on equal entry distances): it is the CPU's top level,
+// and the order instances are entered in decides the tmax each object's walk
+// starts with, so a different top-level shape would change the traversal
+// steps compared with the CPU (debug-cost images). It is rebuilt on the host
+// each frame and holds one leaf entry per instance, a small part of a walk.
+// Stacks: the top level's RK_MAX_DEPTH entries, an object's
+// (RK_WIDTH − 1)·RK_MAX_DEPTH + 1 (traverse's bound); the CPU throws on a
+// deeper tree, here the walk stops with the hits found so far (raykit's
+// builders never emit such trees).
 //
 // Leaf filter: when the program defines RK_LEAF_FILTER (before this part) it
 // also defines the type rk_filter and
@@ -64,16 +86,14 @@ typedef struct {
     __global const uint* top_ids;
     __global const rk_instance* instances;
     __global const rk_object* objects;
-    __global const rk_node* nodes;
-    __global const uint* prim_ids;
-    __global const rk_triangle* tris;
-    __global const float* pos;
+    __global const rk_wnode* nodes;
+    __global const rk_block* blocks;
     uint top_count;
     int mesh;
     rk_object mesh_object;
 } rk_scene;
 
-/* One inner node: slab-tests both children of the node whose first child is
+/* One binary node of the top level: slab-tests both children of the node whose first child is
    `index` (in `base`); enters the nearer one hit (*cur) and pushes the
    farther one with its entry distance. Returns 1 when a child is entered, 0
    when neither is (pop next), -1 when the stack is full (*sp == limit). */
@@ -129,9 +149,11 @@ RK_INLINE rk_ray rk_object_ray(__global const rk_instance* in, const rk_ray* r, 
     return o;
 }
 
-/* Stack entries of a walk: the top level's (at most RK_MAX_DEPTH) below the current object's
-   (at most RK_MAX_DEPTH). */
-#define RK_WALK_STACK (2 * RK_MAX_DEPTH)
+/* The object's stack: at most RK_WIDTH - 1 entries per wide level (raykit::traverse's bound). */
+#define RK_WSTACK ((RK_WIDTH - 1) * RK_MAX_DEPTH + 1)
+
+/* The lowest set bit's index (ctz is OpenCL C 2.0). */
+RK_INLINE int rk_lowest_bit(const uint m) { return 31 - (int)clz(m & (0u - m)); }
 
 /* Closest hit (any == 0: *best improved in place, inst set; true when it was)
    or any hit (any != 0: true when something blocks) of `r` in [r->tmin, r->tmax]. */
@@ -139,9 +161,11 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
                        uint* steps) {
     if (steps) *steps = 0u;
     float tmax = r->tmax;
-    uint st_node[RK_WALK_STACK];
-    float st_t[RK_WALK_STACK];
-    int sp = 0;                 /* the top level's entries, then the current object's */
+    uint st_node[RK_MAX_DEPTH];  /* the top level's entries */
+    float st_t[RK_MAX_DEPTH];
+    uint ws_index[RK_WSTACK], ws_count[RK_WSTACK];  /* the current object's entries */
+    float ws_t[RK_WSTACK];
+    int sp = 0;
     uint tcur = 0;              /* top-level node */
     uint leaf_k = 0, leaf_end = sc->mesh ? 1u : 0u;  /* instances of the top-level leaf still to walk */
     bool top_pending = !sc->mesh, found = false;
@@ -168,48 +192,121 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
             }
             ++leaf_k;
             if (ob.node_count == 0) continue;
-            __global const rk_node* restrict nodes = sc->nodes + ob.node_offset;
-            __global const uint* restrict prim_ids = sc->prim_ids + ob.prim_offset;
-            __global const rk_triangle* restrict tris = sc->tris + ob.triangle_offset;
-            __global const float* restrict pos = sc->pos + (size_t)3 * ob.vertex_offset;
+            __global const rk_wnode* restrict nodes = sc->nodes + ob.node_offset;
+            __global const rk_block* restrict blocks = sc->blocks + ob.block_offset;
             const rk_slab_ray s = mapped ? rk_slab_prepare(o.org, o.dir, o.tmin) : top_s;
             const rk_wt_ray w = rk_wt_prepare(o.org, o.dir);
-            float troot;
-            if (!rk_slab(&s, nodes, tmax, &troot)) continue;
-            const int floor = sp;  /* the object's stack entries start here */
-            uint cur = 0u;
+            /* raykit::traverse over a WideBvhT: node 0 holds the root box alone (its test is the
+               CPU's test of WideBvhT::bounds, not counted); entered children nearest first (ties
+               in slot order), the others pushed far to near; any hit pushes them in slot order. */
+            uint cidx = 0u, ccnt = 0u;
+            int wsp = 0;
             for (;;) {
-                __global const rk_node* n = nodes + cur;
-                const uint index = n->index, count = n->count;
-                if (steps) ++*steps;
-                if (count != 0) {
-                    for (uint k = index; k < index + count; ++k) {
-                        const uint p = prim_ids[k];
-                        const rk_triangle t = tris[p];
-                        const float3 p0 = vload3(t.v[0], pos), p1 = vload3(t.v[1], pos), p2 = vload3(t.v[2], pos);
-                        float th, uh, vh;
-                        if (!rk_wt_intersect(&w, p0, p1, p2, r->tmin, tmax, &th, &uh, &vh)) continue;
-                        /* Hit::closer_than against the best so far (th <= tmax = best->t when there is one) */
-                        if (!any && !(th < best->t || inst < best->inst || (inst == best->inst && p < best->prim)))
+                if (ccnt == 0u) {
+                    __global const rk_wnode* n = nodes + cidx;
+                    if (steps && cidx != 0u) ++*steps;
+                    float td[RK_WIDTH];
+                    uint mask = rk_wslab(&s, n, tmax, td);
+                    if (mask) {
+                        if (wsp + RK_WIDTH - 1 > RK_WSTACK) return found;
+                        int i = rk_lowest_bit(mask);
+                        mask &= mask - 1u;
+                        if (any) {
+                            cidx = n->index[i];
+                            ccnt = n->count[i];
+                            while (mask) {
+                                i = rk_lowest_bit(mask);
+                                mask &= mask - 1u;
+                                ws_index[wsp] = n->index[i];
+                                ws_count[wsp] = n->count[i];
+                                ws_t[wsp] = td[i];
+                                ++wsp;
+                            }
                             continue;
-#ifdef RK_LEAF_FILTER
-                        if (f && !rk_keep(f, object, &ob, p, uh, vh)) continue;
-#endif
-                        if (any) return true;
-                        best->t = th;
-                        best->u = uh;
-                        best->v = vh;
-                        best->prim = p;
-                        best->inst = inst;
-                        tmax = th;
-                        found = true;
+                        }
+                        if (!mask) {  /* one child: no sorting */
+                            cidx = n->index[i];
+                            ccnt = n->count[i];
+                            continue;
+                        }
+                        if (!(mask & (mask - 1u))) {  /* two: the nearer (ties: the first slot) */
+                            const int i1 = rk_lowest_bit(mask);
+                            const bool swap = td[i1] < td[i];
+                            const int a = swap ? i1 : i, c = swap ? i : i1;
+                            ws_index[wsp] = n->index[c];
+                            ws_count[wsp] = n->count[c];
+                            ws_t[wsp] = td[c];
+                            ++wsp;
+                            cidx = n->index[a];
+                            ccnt = n->count[a];
+                            continue;
+                        }
+                        int e[RK_WIDTH];
+                        int k = 1;
+                        e[0] = i;
+                        while (mask) {  /* three or more: insertion sort by entry distance, stable */
+                            i = rk_lowest_bit(mask);
+                            mask &= mask - 1u;
+                            int j = k++;
+                            while (j > 0 && td[e[j - 1]] > td[i]) {
+                                e[j] = e[j - 1];
+                                --j;
+                            }
+                            e[j] = i;
+                        }
+                        for (int j = k - 1; j >= 1; --j) {
+                            ws_index[wsp] = n->index[e[j]];
+                            ws_count[wsp] = n->count[e[j]];
+                            ws_t[wsp] = td[e[j]];
+                            ++wsp;
+                        }
+                        cidx = n->index[e[0]];
+                        ccnt = n->count[e[0]];
+                        continue;
                     }
                 } else {
-                    const int step = rk_descend(&s, nodes, index, tmax, &cur, st_node, st_t, &sp, floor + RK_MAX_DEPTH);
-                    if (step < 0) return found;
-                    if (step > 0) continue;
+                    if (steps) ++*steps;
+                    for (uint k = cidx; k < cidx + ccnt; ++k) {
+                        __global const rk_block* b = blocks + k;
+                        float4 t4, u4, v4;
+                        uint m = rk_wt4_intersect(&w, b, r->tmin, tmax, &t4, &u4, &v4);
+                        while (m) {  /* lanes in order, as a scalar loop over the leaf's triangles */
+                            const int i = rk_lowest_bit(m);
+                            m &= m - 1u;
+                            const float th = i == 0 ? t4.x : i == 1 ? t4.y : i == 2 ? t4.z : t4.w;
+                            if (!(th <= tmax)) continue;
+                            const uint p = b->prim[i];
+                            /* Hit::closer_than against the best so far (th <= tmax = best->t when there is one) */
+                            if (!any && !(th < best->t || inst < best->inst || (inst == best->inst && p < best->prim)))
+                                continue;
+                            const float uh = i == 0 ? u4.x : i == 1 ? u4.y : i == 2 ? u4.z : u4.w;
+                            const float vh = i == 0 ? v4.x : i == 1 ? v4.y : i == 2 ? v4.z : v4.w;
+#ifdef RK_LEAF_FILTER
+                            if (f && !rk_keep(f, object, &ob, p, uh, vh)) continue;
+#endif
+                            if (any) return true;
+                            best->t = th;
+                            best->u = uh;
+                            best->v = vh;
+                            best->prim = p;
+                            best->inst = inst;
+                            tmax = th;
+                            found = true;
+                        }
+                    }
                 }
-                if (!rk_pop(&cur, st_node, st_t, &sp, floor, tmax)) break;
+                /* the next entry still in front of tmax */
+                bool next = false;
+                while (wsp > 0) {
+                    --wsp;
+                    if (ws_t[wsp] <= tmax * RK_SLAB_EXIT_SCALE) {
+                        cidx = ws_index[wsp];
+                        ccnt = ws_count[wsp];
+                        next = true;
+                        break;
+                    }
+                }
+                if (!next) break;
             }
             continue;
         }
@@ -229,17 +326,15 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
     }
 }
 
-RK_INLINE rk_scene rk_mesh_scene(__global const rk_node* nodes, __global const uint* prim_ids,
-                                 __global const rk_triangle* tris, __global const float* pos, const uint node_count) {
+RK_INLINE rk_scene rk_mesh_scene(__global const rk_wnode* nodes, __global const rk_block* blocks,
+                                 const uint node_count) {
     rk_scene sc;
-    sc.top = nodes;
-    sc.top_ids = prim_ids;
+    sc.top = 0;
+    sc.top_ids = 0;
     sc.instances = 0;
     sc.objects = 0;
     sc.nodes = nodes;
-    sc.prim_ids = prim_ids;
-    sc.tris = tris;
-    sc.pos = pos;
+    sc.blocks = blocks;
     sc.top_count = 0u;
     sc.mesh = 1;
     rk_object ob = {0u, node_count, 0u, 0u, 0u, 0u, 0u, 0u};
@@ -247,32 +342,31 @@ RK_INLINE rk_scene rk_mesh_scene(__global const rk_node* nodes, __global const u
     return sc;
 }
 
-/* The kernel parameters of a two-level scene, and the rk_scene made of them. */
+/* The kernel parameters of a two-level scene, and the rk_scene made of them (tris: for the
+   renderer's leaf filter; the walk reads the blocks). */
 #define RK_SCENE_PARAMS __global const rk_node* top, const uint top_count, __global const uint* top_ids, \
-    __global const rk_instance* instances, __global const rk_object* objects, __global const rk_node* nodes, \
-    __global const uint* prim_ids, __global const rk_triangle* tris, __global const float* pos
-#define RK_SCENE_MAKE(sc) const rk_scene sc = {top, top_ids, instances, objects, nodes, prim_ids, tris, pos, \
+    __global const rk_instance* instances, __global const rk_object* objects, __global const rk_wnode* nodes, \
+    __global const rk_block* blocks, __global const rk_triangle* tris
+#define RK_SCENE_MAKE(sc) const rk_scene sc = {top, top_ids, instances, objects, nodes, blocks, \
     top_count, 0, {0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u}}
 
-__kernel void rk_mesh_closest(__global const rk_node* nodes, __global const uint* prim_ids,
-                              __global const rk_triangle* tris, __global const float* pos, const uint node_count,
+__kernel void rk_mesh_closest(__global const rk_wnode* nodes, __global const rk_block* blocks, const uint node_count,
                               __global const rk_ray* rays, __global rk_hit* hits, const uint n) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
     const rk_ray r = rays[i];
-    const rk_scene sc = rk_mesh_scene(nodes, prim_ids, tris, pos, node_count);
+    const rk_scene sc = rk_mesh_scene(nodes, blocks, node_count);
     rk_hit h = rk_miss();
     rk_walk(&sc, &r, 0, &h, 0, 0);
     hits[i] = h;
 }
 
-__kernel void rk_mesh_any(__global const rk_node* nodes, __global const uint* prim_ids,
-                          __global const rk_triangle* tris, __global const float* pos, const uint node_count,
+__kernel void rk_mesh_any(__global const rk_wnode* nodes, __global const rk_block* blocks, const uint node_count,
                           __global const rk_ray* rays, __global uint* occluded, const uint n) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
     const rk_ray r = rays[i];
-    const rk_scene sc = rk_mesh_scene(nodes, prim_ids, tris, pos, node_count);
+    const rk_scene sc = rk_mesh_scene(nodes, blocks, node_count);
     rk_hit h = rk_miss();
     occluded[i] = rk_walk(&sc, &r, 1, &h, 0, 0) ? 1u : 0u;
 }
