@@ -25,6 +25,7 @@
 #include "raykit/cl/program.hpp"
 #include "raykit/cl/buffer.hpp"
 #include "raykit/cl/layout.hpp"
+#include "raykit/cl/device_tree.hpp"
 #include "raykit/cl/trace.hpp"
 #include "raykit/cl/hook.hpp"
 #include "raykit/cl/refit.hpp"
