@@ -517,20 +517,8 @@ std::size_t tile_pixel(std::size_t x0, std::size_t y0, unsigned k) {
 }
 
 /// Writes `r` into lane k of packet `p`.
-void set_lane(RTCRay16& p, unsigned k, const Ray& r) {
-    p.org_x[k] = r.org.x, p.org_y[k] = r.org.y, p.org_z[k] = r.org.z, p.tnear[k] = r.tmin;
-    p.dir_x[k] = r.dir.x, p.dir_y[k] = r.dir.y, p.dir_z[k] = r.dir.z, p.time[k] = 0.0f;
-    p.tfar[k] = r.tmax, p.mask[k] = 0xFFFFFFFFu, p.id[k] = k, p.flags[k] = 0;
-}
-
-/// A context for tile packets: a tile's camera rays share an origin and its shadow rays a
-/// target, so Embree may trace them as a coherent packet.
-RTCIntersectContext coherent_context() {
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    return ctx;
-}
+using rkbench::coherent_context;
+using rkbench::set_lane;
 
 /// Closest hits of the camera rays, one rtcIntersect16 per 4 x 4 tile (all lanes valid).
 void embree16_camera(const EmbreeFrame& f, unsigned threads, std::vector<Hit>& hits) {

@@ -1,6 +1,6 @@
 // benchmarks/bench_trace.cpp — single-ray closest-hit and any-hit throughput, raykit vs Embree 3.
 //
-// Cases: trace/<scene>/<rays>/<closest|any>/<raykit|wide8|block8|embree>/threads:<T>
+// Cases: trace/<scene>/<rays>/<closest|any>/<raykit|wide8|block8|batch|embree|embree_high|embree16>/threads:<T>
 //   scene   bunny, torus100k, torus1M            (common.hpp)
 //   rays    primary, random, 262 144 rays each   (common.hpp; any-hit uses the same rays, tmax = inf)
 //   T       1, 2 std::threads, static round-robin chunks of 256 rays (common.hpp trace_parallel)
@@ -9,9 +9,14 @@
 // WideBvh8 (bvh/wide.hpp, 8 children per node), same leaves, same answers; block8:
 // BlockBvh8::build (scene/block_bvh.hpp): a binned-SAH tree built for 4-triangle blocks
 // (leaf_block 4, leaves up to 12), collapsed 8-wide, leaves tested 4 triangles at a time
-// (vertex copies, 160 B per block). Embree: one default-config device, one scene per mesh with
-// one RTC_GEOMETRY_TYPE_TRIANGLE geometry, RTC_BUILD_QUALITY_MEDIUM, rtcIntersect1 /
-// rtcOccluded1. Both write one result per ray into the same output arrays. items/s = rays/s.
+// (vertex copies, 160 B per block); batch: the same BlockBvh8 through the batch call
+// intersect_closest / intersect_any(tree, rays, results) on each thread's chunks of 256 rays
+// (packets of kPacketWidth consecutive rays, bvh/traverse_packet.hpp). Embree: one
+// default-config device, one scene per mesh with one RTC_GEOMETRY_TYPE_TRIANGLE geometry,
+// scene and geometry at RTC_BUILD_QUALITY_MEDIUM (embree, embree16) or HIGH (embree_high,
+// spatial splits); rtcIntersect1 / rtcOccluded1, or for embree16 rtcIntersect16 /
+// rtcOccluded16 on 16 consecutive rays (the batch's grouping; a coherent context). All write
+// one result per ray into the same output arrays. items/s = rays/s.
 //
 // Counters: Mrays/s; hit_frac (fraction of rays that hit / are occluded, from this
 // library's results); mismatch (computed once, untimed, for every case of a scene and ray
@@ -29,6 +34,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -40,7 +46,7 @@ using rkbench::Scene;
 
 constexpr double kMinTime = 0.5;  // seconds per case
 
-enum class Lib { raykit, wide, wide8, block8, embree };
+enum class Lib { raykit, wide, wide8, block8, batch, embree, embree_high, embree16 };
 
 struct Outputs {
     std::vector<float> t;
@@ -88,6 +94,24 @@ struct SelfQuery {
 template <class Tree>
 SelfQuery(const Tree&) -> SelfQuery<Tree>;
 
+/// The batch call on each chunk of rays (packets inside).
+void trace_batch(const raykit::BlockBvh8& tree, const std::vector<raykit::Ray>& rays, bool any, unsigned threads,
+                 Outputs& out) {
+    rkbench::trace_parallel(rays.size(), threads, [&](std::size_t b, std::size_t e) {
+        const std::span<const raykit::Ray> chunk(rays.data() + b, e - b);
+        if (any) {
+            raykit::intersect_any(tree, chunk, std::span<std::uint8_t>(out.occluded.data() + b, e - b), 1);
+        } else {
+            raykit::Hit hits[rkbench::kChunkRays];
+            raykit::intersect_closest(tree, chunk, std::span<raykit::Hit>(hits, e - b), 1);
+            for (std::size_t i = b; i < e; ++i) {
+                out.t[i] = hits[i - b].t;
+                out.prim[i] = hits[i - b].prim;
+            }
+        }
+    });
+}
+
 #ifdef RAYKIT_HAVE_EMBREE
 struct EmbreeScene {
     std::vector<rkbench::EmbreeVertex> verts;
@@ -95,21 +119,50 @@ struct EmbreeScene {
     std::string error;
 };
 
-/// Embree scene over `s` on the default device, MEDIUM quality, built once.
-const EmbreeScene& embree_scene(const Scene& s) {
+/// Embree scene over `s` on the default device at `quality`, built once.
+const EmbreeScene& embree_scene(const Scene& s, RTCBuildQuality quality = RTC_BUILD_QUALITY_MEDIUM) {
     static std::mutex m;
     static std::map<std::string, std::unique_ptr<EmbreeScene>> cache;
     std::lock_guard lock(m);
-    auto& slot = cache[s.name];
+    auto& slot = cache[s.name + (quality == RTC_BUILD_QUALITY_HIGH ? "/high" : "/medium")];
     if (!slot) {
         slot = std::make_unique<EmbreeScene>();
         slot->verts = rkbench::embree_vertices(s.mesh);
         rkbench::take_embree_error();
-        slot->scene = rkbench::make_embree_scene(rkbench::default_embree_device(), s.mesh, slot->verts,
-                                                 RTC_BUILD_QUALITY_MEDIUM);
+        slot->scene = rkbench::make_embree_scene(rkbench::default_embree_device(), s.mesh, slot->verts, quality);
         slot->error = rkbench::take_embree_error();
     }
     return *slot;
+}
+
+/// rtcIntersect16 / rtcOccluded16 on 16 consecutive rays of each chunk (a short last group
+/// has its missing lanes invalid).
+void trace_embree16(RTCScene scene, const std::vector<raykit::Ray>& rays, bool any, unsigned threads, Outputs& out) {
+    rkbench::trace_parallel(rays.size(), threads, [&](std::size_t b, std::size_t e) {
+        RTCIntersectContext ctx = rkbench::coherent_context();
+        alignas(64) int valid[16];
+        for (std::size_t g = b; g < e; g += 16) {
+            const std::size_t n = std::min<std::size_t>(16, e - g);
+            RTCRayHit16 rh;
+            for (unsigned k = 0; k < 16; ++k) {
+                valid[k] = k < n ? -1 : 0;
+                rkbench::set_lane(rh.ray, k, rays[g + (k < n ? k : 0)]);
+                rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+                rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+            }
+            if (any) {
+                rtcOccluded16(valid, scene, &ctx, &rh.ray);
+                for (unsigned k = 0; k < n; ++k) out.occluded[g + k] = rh.ray.tfar[k] < 0.0f;
+            } else {
+                rtcIntersect16(valid, scene, &ctx, &rh);
+                for (unsigned k = 0; k < n; ++k) {
+                    const bool hit = rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
+                    out.t[g + k] = hit ? rh.ray.tfar[k] : raykit::kInf;
+                    out.prim[g + k] = hit ? rh.hit.primID[k] : raykit::kInvalidIndex;
+                }
+            }
+        }
+    });
 }
 
 void trace_embree(RTCScene scene, const std::vector<raykit::Ray>& rays, bool any, unsigned threads, Outputs& out) {
@@ -143,6 +196,7 @@ void trace_embree(RTCScene scene, const std::vector<raykit::Ray>& rays, bool any
 struct Check {
     double mismatch_closest = -1, mismatch_any = -1;  // -1: Embree not built in
     double block_vs_binary = 0;
+    double batch_vs_single = 0;  // batch answers differing from block8's single rays in any bit
     double hit_frac_raykit = 0, hit_frac_embree = 0, occluded_frac_raykit = 0, occluded_frac_embree = 0;
 };
 
@@ -174,6 +228,14 @@ const Check& check(const Scene& s, const std::string& set) {
             d += bk.prim[i] != rk.prim[i] || std::bit_cast<std::uint32_t>(bk.t[i]) != std::bit_cast<std::uint32_t>(rk.t[i]) ||
                  bk.occluded[i] != rk.occluded[i];
         c.block_vs_binary = double(d);
+        Outputs bt(n);
+        trace_batch(rkbench::raykit_block8_bvh(s), rays, false, 0, bt);
+        trace_batch(rkbench::raykit_block8_bvh(s), rays, true, 0, bt);
+        std::size_t db = 0;
+        for (std::size_t i = 0; i < n; ++i)
+            db += bt.prim[i] != bk.prim[i] || std::bit_cast<std::uint32_t>(bt.t[i]) != std::bit_cast<std::uint32_t>(bk.t[i]) ||
+                  bt.occluded[i] != bk.occluded[i];
+        c.batch_vs_single = double(db);
     }
     c.occluded_frac_raykit = double(occ) / double(n);
 #ifdef RAYKIT_HAVE_EMBREE
@@ -224,15 +286,22 @@ void BM_trace(benchmark::State& state, std::string scene_name, std::string set, 
         time_raykit(TreeQuery{rkbench::raykit_wide8_bvh(*s), mesh});
     } else if (lib == Lib::block8) {
         time_raykit(SelfQuery{rkbench::raykit_block8_bvh(*s)});
+    } else if (lib == Lib::batch) {
+        for (auto _ : state) {
+            trace_batch(rkbench::raykit_block8_bvh(*s), rays, any, threads, out);
+            benchmark::ClobberMemory();
+        }
+        state.counters["hit_frac"] = any ? c.occluded_frac_raykit : c.hit_frac_raykit;
     } else {
 #ifdef RAYKIT_HAVE_EMBREE
-        const EmbreeScene& es = embree_scene(*s);
+        const EmbreeScene& es = embree_scene(*s, lib == Lib::embree_high ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM);
         if (!es.error.empty()) {
             state.SkipWithError(es.error.c_str());
             return;
         }
         for (auto _ : state) {
-            trace_embree(es.scene, rays, any, threads, out);
+            if (lib == Lib::embree16) trace_embree16(es.scene, rays, any, threads, out);
+            else trace_embree(es.scene, rays, any, threads, out);
             benchmark::ClobberMemory();
         }
         state.counters["hit_frac"] = any ? c.occluded_frac_embree : c.hit_frac_embree;
@@ -247,12 +316,13 @@ void BM_trace(benchmark::State& state, std::string scene_name, std::string set, 
     const double mm = any ? c.mismatch_any : c.mismatch_closest;
     if (mm >= 0) state.counters["mismatch"] = mm;
     if (lib == Lib::block8) state.counters["block_vs_binary"] = c.block_vs_binary;
+    if (lib == Lib::batch) state.counters["batch_vs_single"] = c.batch_vs_single;
 }
 
 const bool registered = [] {
-    std::vector<Lib> libs{Lib::raykit, Lib::wide8, Lib::block8};
+    std::vector<Lib> libs{Lib::raykit, Lib::wide8, Lib::block8, Lib::batch};
 #ifdef RAYKIT_HAVE_EMBREE
-    libs.push_back(Lib::embree);
+    libs.insert(libs.end(), {Lib::embree, Lib::embree_high, Lib::embree16});
 #endif
     for (const std::string& sc : rkbench::scene_names())
         for (const std::string& set : rkbench::ray_set_names())
@@ -264,6 +334,9 @@ const bool registered = [] {
                                                   : lib == Lib::wide      ? "wide"
                                                   : lib == Lib::wide8     ? "wide8"
                                                   : lib == Lib::block8    ? "block8"
+                                                  : lib == Lib::batch     ? "batch"
+                                                  : lib == Lib::embree_high ? "embree_high"
+                                                  : lib == Lib::embree16  ? "embree16"
                                                                           : "embree") +
                                                  "/threads:" + std::to_string(threads);
                         benchmark::RegisterBenchmark(name.c_str(), BM_trace, sc, set, any, lib, threads)

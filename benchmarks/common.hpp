@@ -342,6 +342,22 @@ inline RTCRayHit to_embree(const raykit::Ray& r) {
     return rh;
 }
 
+/// Lane k of a 16-ray packet from `r` (mask all, id k).
+inline void set_lane(RTCRay16& p, unsigned k, const raykit::Ray& r) {
+    p.org_x[k] = r.org.x, p.org_y[k] = r.org.y, p.org_z[k] = r.org.z, p.tnear[k] = r.tmin;
+    p.dir_x[k] = r.dir.x, p.dir_y[k] = r.dir.y, p.dir_z[k] = r.dir.z, p.time[k] = 0.0f;
+    p.tfar[k] = r.tmax, p.mask[k] = 0xFFFFFFFFu, p.id[k] = k, p.flags[k] = 0;
+}
+
+/// A context for packets of neighbouring rays (a tile's camera rays, shadow rays to one
+/// light), so Embree may trace them as coherent packets.
+inline RTCIntersectContext coherent_context() {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    return ctx;
+}
+
 #endif  // RAYKIT_HAVE_EMBREE
 
 }  // namespace rkbench

@@ -42,6 +42,7 @@
 #include "raykit/bvh/rebuild_policy.hpp"
 #include "raykit/bvh/traverse.hpp"
 #include "raykit/bvh/wide.hpp"
+#include "raykit/bvh/traverse_packet.hpp"
 #include "raykit/bvh/traverse_wide.hpp"
 #include "raykit/scene/mesh.hpp"
 #include "raykit/scene/skeleton_data.hpp"

@@ -252,3 +252,159 @@ TEST(BlockBvh, BuildAndMakeRejectVerticesBeyondTheCoordinateBound) {
     m.positions[7].x = -kMaxCoordinate;  // the bound itself is inside
     EXPECT_NO_THROW((void)BlockBvh8::build(m));
 }
+
+// ---------------------------------------------------------------- batches: packets of rays
+
+namespace {
+
+/// Differences between batch answers and single-ray answers (prim, inst, t, u, v bit for bit;
+/// any-hit flag), printing the first.
+std::size_t batch_differences(const std::vector<Hit>& batch, const std::vector<std::uint8_t>& any,
+                              const std::vector<Hit>& single, const std::vector<bool>& single_any) {
+    std::size_t bad = 0;
+    for (std::size_t i = 0; i < single.size(); ++i) {
+        const Hit &a = batch[i], &b = single[i];
+        const bool diff = a.prim != b.prim || a.inst != b.inst || !same_bits(a.t, b.t) || !same_bits(a.u, b.u) ||
+                          !same_bits(a.v, b.v) || bool(any[i]) != single_any[i];
+        if (diff && bad++ == 0)
+            std::printf("[ info ] first difference, ray %zu: batch prim %u t %a, single prim %u t %a; any %d / %d\n", i,
+                        a.prim, double(a.t), b.prim, double(b.t), int(any[i]), int(single_any[i]));
+    }
+    return bad;
+}
+
+/// Camera rays, random rays (mixed octants in every packet), rays with narrowed intervals,
+/// axis-parallel and zero-component directions, and rays aimed at vertices: the cases where a
+/// packet's lanes disagree with each other.
+std::vector<Ray> batch_test_rays(const Mesh& m, std::size_t n_random, std::uint64_t seed) {
+    AABB box;
+    for (const vec3& p : m.positions) box.grow(p);
+    std::vector<Ray> rays = raykit::test::random_rays(m, n_random, seed);
+    const Camera cam = frame_scene(box, 48, 40);
+    for (const Ray& r : camera_rays(cam)) rays.push_back(r);
+    const Camera centre = camera_looking_at(box, 33, 17, vec3(0.0f, 0.0f, 1.0f), 30.0f);  // tiles straddle octants
+    for (const Ray& r : camera_rays(centre, 0.3f, 0.7f)) rays.push_back(r);
+    std::mt19937_64 rng(seed + 1);
+    std::uniform_real_distribution<float> U(0.0f, 1.0f);
+    const vec3 c = box.center(), e = box.extent();
+    for (int i = 0; i < 200; ++i) {
+        Ray r;
+        r.org = c + (vec3(U(rng), U(rng), U(rng)) - 0.5f) * e * 1.5f;
+        const int axis = i % 3;
+        r.dir = vec3(0.0f);
+        r.dir[axis] = i % 2 ? 1.0f : -1.0f;
+        if (i % 5 == 0) r.dir[(axis + 1) % 3] = -0.0f;
+        if (i % 7 == 0) {
+            r.tmin = 0.25f * e[axis];
+            r.tmax = 0.75f * e[axis];
+        }
+        rays.push_back(r);
+    }
+    for (std::size_t i = 0; i < rays.size(); i += 13) rays[i].tmax = 0.5f * glm::length(e) / glm::length(rays[i].dir);
+    return rays;
+}
+
+}  // namespace
+
+TEST(Batch, BlockTreePacketsEqualSingleRaysBitForBit) {
+    const Mesh m = make_bumpy_torus(20000);
+    const BlockBvh8 b = BlockBvh8::build(m);
+    const BlockBvh blocks4 = BlockBvh::make(m, build_bvh(MeshView(m), BuildOptions{}));
+    const std::vector<Ray> rays = batch_test_rays(m, 3001, 21);
+    std::vector<Hit> single(rays.size());
+    std::vector<bool> single_any(rays.size());
+    std::size_t hits = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        single[i] = intersect_closest(b, rays[i]);
+        single_any[i] = intersect_any(b, rays[i]);
+        hits += single[i].valid();
+        // the single-ray answer is brute force's (so the batch is too)
+        const Hit o = brute_force_closest(m, rays[i]);
+        ASSERT_TRUE(o.prim == single[i].prim && same_bits(o.t, single[i].t)) << "ray " << i;
+    }
+    for (unsigned threads : {1u, 2u}) {
+        SCOPED_TRACE(threads);
+        std::vector<Hit> batch(rays.size());
+        std::vector<std::uint8_t> any(rays.size());
+        intersect_closest(b, rays, batch, threads);
+        intersect_any(b, rays, any, threads);
+        EXPECT_EQ(batch_differences(batch, any, single, single_any), 0u) << "of " << rays.size();
+        // 4-wide nodes walk as packets too
+        intersect_closest(blocks4, rays, batch, threads);
+        intersect_any(blocks4, rays, any, threads);
+        EXPECT_EQ(batch_differences(batch, any, single, single_any), 0u) << "4-wide, of " << rays.size();
+    }
+    EXPECT_GT(hits, rays.size() / 4);
+    std::printf("[ info ] %zu rays (%zu hit), packets of %d\n", rays.size(), hits, kPacketWidth);
+}
+
+TEST(Batch, LeafFilterAppliesToEveryLane) {
+    const Mesh m = make_bumpy_torus(8000);
+    const BlockBvh8 b = BlockBvh8::build(m);
+    const auto keep = [](std::uint32_t p, float u, float) { return p % 3 != 0 && u < 0.8f; };
+    const std::vector<Ray> rays = batch_test_rays(m, 1500, 4);
+    std::vector<Hit> batch(rays.size());
+    std::vector<std::uint8_t> any(rays.size());
+    intersect_closest(b, rays, batch, 1, keep);
+    intersect_any(b, rays, any, 1, keep);
+    std::vector<Hit> single(rays.size());
+    std::vector<bool> single_any(rays.size());
+    std::size_t filtered = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        single[i] = intersect_closest(b, rays[i], nullptr, keep);
+        single_any[i] = intersect_any(b, rays[i], nullptr, keep);
+        filtered += single[i].prim != intersect_closest(b, rays[i]).prim;
+    }
+    EXPECT_GT(filtered, rays.size() / 20);  // the filter changed answers, and the batch followed
+    EXPECT_EQ(batch_differences(batch, any, single, single_any), 0u) << "of " << rays.size();
+}
+
+TEST(Batch, SceneBatchesEqualSingleRays) {
+    // one-leaf top levels (packets through identity and transformed instances, rotations past
+    // pi) and a top level with a walk (ray by ray)
+    for (int instances : {1, 3, 7}) {
+        SCOPED_TRACE(instances);
+        Scene s;
+        const std::uint32_t torus = s.add_object(make_bumpy_torus(6000));
+        const std::uint32_t ball = s.add_object(make_icosphere(3));
+        s.add_instance(torus);
+        for (int k = 1; k < instances; ++k) {
+            mat4 t = glm::translate(mat4(1.0f), vec3(1.5f * float(k), 0.3f * float(k), -0.5f));
+            t = glm::rotate(t, 1.3f * float(k) + 2.0f, glm::normalize(vec3(1.0f, float(k), 0.5f)));
+            s.add_instance(k % 2 ? ball : torus, glm::scale(t, vec3(0.4f + 0.2f * float(k))));
+        }
+        s.update_top_level();
+        const auto [w, origin] = s.world_mesh();
+        const std::vector<Ray> rays = batch_test_rays(w, 2000, 8 + std::uint64_t(instances));
+        std::vector<Hit> batch(rays.size()), single(rays.size());
+        std::vector<std::uint8_t> any(rays.size());
+        std::vector<bool> single_any(rays.size());
+        s.intersect_closest(rays, batch);
+        s.intersect_any(rays, any);
+        std::size_t hits = 0;
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            single[i] = s.intersect_closest(rays[i]);
+            single_any[i] = s.intersect_any(rays[i]);
+            hits += single[i].valid();
+        }
+        EXPECT_EQ(batch_differences(batch, any, single, single_any), 0u) << "of " << rays.size();
+        EXPECT_GT(hits, rays.size() / 5);
+    }
+}
+
+TEST(Batch, ShortResultSpansAreRefused) {
+    const Mesh m = make_icosphere(1);
+    const BlockBvh8 b = BlockBvh8::build(m);
+    const std::vector<Ray> rays(10);
+    std::vector<Hit> hits(9);
+    std::vector<std::uint8_t> any(9);
+    EXPECT_THROW(intersect_closest(b, rays, hits), std::invalid_argument);
+    EXPECT_THROW(intersect_any(b, rays, any), std::invalid_argument);
+    Scene s;
+    s.add_instance(s.add_object(make_icosphere(1)));
+    s.update_top_level();
+    EXPECT_THROW(s.intersect_closest(rays, hits), std::invalid_argument);
+    // empty batches are fine
+    intersect_closest(b, std::span<const Ray>{}, std::span<Hit>{});
+    s.intersect_any(std::span<const Ray>{}, std::span<std::uint8_t>{});
+}

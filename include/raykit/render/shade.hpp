@@ -324,6 +324,12 @@ struct Tracer {
         return s.scene->template intersect_closest<kTrees>(ray, keep(), stats);
     }
     bool any(const Ray& ray) const { return s.scene->template intersect_any<kTrees>(ray, keep()); }
+    void closest_batch(std::span<const Ray> rays, std::span<Hit> hits) const {
+        s.scene->template intersect_closest<kTrees>(rays, hits, keep());
+    }
+    void any_batch(std::span<const Ray> rays, std::span<std::uint8_t> blocked) const {
+        s.scene->template intersect_any<kTrees>(rays, blocked, keep());
+    }
 };
 
 /// Times a callable into `ticks` and `bounce_ticks` (stage_ticks units) when `on`.

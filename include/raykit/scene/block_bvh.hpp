@@ -32,10 +32,13 @@
 // one traversal of every tree shape and leaf store.
 #pragma once
 
+#include <algorithm>
 #include <bit>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <stdexcept>
+#include <string>
 #include <type_traits>
 #include <vector>
 
@@ -206,6 +209,51 @@ Hit intersect_closest(const BlockBvhT<W>& b, const Ray& ray, Stats stats = nullp
 template <int W, class Stats = std::nullptr_t, class Keep = AcceptAll>
 bool intersect_any(const BlockBvhT<W>& b, const Ray& ray, Stats stats = nullptr, const Keep& keep = {}) {
     return any_hit(b.tree, b.leaves(), ray, keep, stats);
+}
+
+namespace detail {
+/// fn(first, n) for the packets of a batch of `size` rays (kPacketWidth at a time), spread
+/// over `threads` (0: all cores) when the batch is large enough to pay for them.
+template <class Fn>
+void for_each_packet(std::size_t size, unsigned threads, Fn&& fn) {
+    const std::size_t packets = (size + kPacketWidth - 1) / kPacketWidth;
+    parallel_for(
+        packets, threads,
+        [&](std::size_t i) {
+            const std::size_t first = i * kPacketWidth;
+            fn(first, static_cast<unsigned>(std::min<std::size_t>(kPacketWidth, size - first)));
+        },
+        256);
+}
+inline void check_batch(std::size_t rays, std::size_t results, const char* what) {
+    if (results < rays)
+        throw std::invalid_argument(std::string("raykit::") + what + ": fewer results than rays (" +
+                                    std::to_string(results) + " < " + std::to_string(rays) + ")");
+}
+}  // namespace detail
+
+/// Closest hits of a batch: hits[i] is intersect_closest(b, rays[i]) bit for bit. Rays go
+/// kPacketWidth at a time through one packet walk (bvh/traverse_packet.hpp: coherent rays,
+/// such as a camera's tiles, share node fetches and box tests), packets spread over `threads`
+/// (0: all cores). Throws std::invalid_argument when hits is shorter than rays.
+template <int W, class Keep = AcceptAll>
+void intersect_closest(const BlockBvhT<W>& b, std::span<const Ray> rays, std::span<Hit> hits, unsigned threads = 0,
+                       const Keep& keep = {}) {
+    detail::check_batch(rays.size(), hits.size(), "intersect_closest");
+    detail::for_each_packet(rays.size(), threads, [&](std::size_t first, unsigned n) {
+        closest_hit_packet(b.tree, b.leaves(), rays.data() + first, nullptr, n, hits.data() + first, keep);
+    });
+}
+
+/// Any hits of a batch: occluded[i] is intersect_any(b, rays[i]) (1 or 0), as packets.
+template <int W, class Keep = AcceptAll>
+void intersect_any(const BlockBvhT<W>& b, std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                   unsigned threads = 0, const Keep& keep = {}) {
+    detail::check_batch(rays.size(), occluded.size(), "intersect_any");
+    detail::for_each_packet(rays.size(), threads, [&](std::size_t first, unsigned n) {
+        const unsigned m = any_hit_packet(b.tree, b.leaves(), rays.data() + first, n, keep);
+        for (unsigned k = 0; k < n; ++k) occluded[first + k] = std::uint8_t((m >> k) & 1u);
+    });
 }
 
 }  // namespace raykit

@@ -62,6 +62,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -449,6 +450,48 @@ public:
         return any_hit(top_, leaves, ray);
     }
 
+    /// Closest hits of a batch: hits[i] is intersect_closest<Trees>(rays[i], keep) bit for bit.
+    /// With block trees and a one-leaf top level (at most kOneLeafTopLevel instances) the rays
+    /// go kPacketWidth at a time through each object's tree as one packet
+    /// (bvh/traverse_packet.hpp); otherwise ray by ray. Runs on the calling thread (callers
+    /// spread batches over threads: the renderer's rows, or raykit::parallel_for).
+    template <SceneTrees Trees = SceneTrees::blocks, class Keep = AcceptAll>
+    void intersect_closest(std::span<const Ray> rays, std::span<Hit> hits, const Keep& keep = {}) const {
+        require_fresh();
+        detail::check_batch(rays.size(), hits.size(), "Scene::intersect_closest");
+        if constexpr (Trees == SceneTrees::blocks) {
+            if (top_.nodes.size() == 1) {
+                const InstanceLeaves<Trees, Keep, std::nullptr_t> leaves{this, keep, nullptr};
+                for (std::size_t i = 0; i < rays.size(); i += kPacketWidth) {
+                    const auto n = static_cast<unsigned>(std::min<std::size_t>(kPacketWidth, rays.size() - i));
+                    leaves.closest_packet(rays.data() + i, n, top_.nodes[0].count, hits.data() + i);
+                }
+                return;
+            }
+        }
+        for (std::size_t i = 0; i < rays.size(); ++i) hits[i] = intersect_closest<Trees>(rays[i], keep);
+    }
+
+    /// Any hits of a batch: occluded[i] is intersect_any<Trees>(rays[i], keep) (1 or 0), as
+    /// packets under the same conditions as the closest-hit batch.
+    template <SceneTrees Trees = SceneTrees::blocks, class Keep = AcceptAll>
+    void intersect_any(std::span<const Ray> rays, std::span<std::uint8_t> occluded, const Keep& keep = {}) const {
+        require_fresh();
+        detail::check_batch(rays.size(), occluded.size(), "Scene::intersect_any");
+        if constexpr (Trees == SceneTrees::blocks) {
+            if (top_.nodes.size() == 1) {
+                const InstanceLeaves<Trees, Keep, std::nullptr_t> leaves{this, keep, nullptr};
+                for (std::size_t i = 0; i < rays.size(); i += kPacketWidth) {
+                    const auto n = static_cast<unsigned>(std::min<std::size_t>(kPacketWidth, rays.size() - i));
+                    const unsigned m = leaves.any_packet(rays.data() + i, n, top_.nodes[0].count);
+                    for (unsigned k = 0; k < n; ++k) occluded[i + k] = std::uint8_t((m >> k) & 1u);
+                }
+                return;
+            }
+        }
+        for (std::size_t i = 0; i < rays.size(); ++i) occluded[i] = intersect_any<Trees>(rays[i], keep) ? 1 : 0;
+    }
+
     /// Oracle: every triangle of every instance, in object space (the same
     /// ray mapping as intersect_closest, no trees). Equal to it bit for bit.
     Hit brute_force_closest(const Ray& ray) const {
@@ -555,6 +598,57 @@ private:
                 }
             }
             return found;
+        }
+        /// closest() over slots [0, count) for rays[0, n) as packets, into best[0, n).
+        void closest_packet(const Ray* rays, unsigned n, std::uint32_t count, Hit* best) const
+            requires(Trees == SceneTrees::blocks)
+        {
+            float tm[kPacketWidth];
+            for (unsigned r = 0; r < n; ++r) {
+                best[r] = Hit{};
+                tm[r] = rays[r].tmax;
+            }
+            Ray local[kPacketWidth];
+            Hit h[kPacketWidth];
+            for (std::uint32_t k = 0; k < count; ++k) {
+                const std::uint32_t inst = scene->top_.prim_ids[k];
+                const SceneInstance& in = scene->instances_[inst];
+                const SceneObject& o = scene->objects_[in.object];
+                const Ray* r = rays;
+                if (!in.identity) {
+                    for (unsigned i = 0; i < n; ++i) local[i] = object_ray(in, rays[i], tm[i]);
+                    r = local;
+                }
+                closest_hit_packet(o.blocks.tree, o.blocks.leaves(), r, tm, n, h, keep_for(inst));
+                for (unsigned i = 0; i < n; ++i) {
+                    if (!h[i].valid()) continue;
+                    h[i].inst = inst;
+                    if (h[i].closer_than(best[i])) {
+                        best[i] = h[i];
+                        tm[i] = h[i].t;
+                    }
+                }
+            }
+        }
+        /// any() over slots [0, count) for rays[0, n) as packets: bit i set when rays[i] is blocked.
+        unsigned any_packet(const Ray* rays, unsigned n, std::uint32_t count) const
+            requires(Trees == SceneTrees::blocks)
+        {
+            unsigned blocked = 0;
+            const unsigned all = (1u << n) - 1;
+            Ray local[kPacketWidth];
+            for (std::uint32_t k = 0; k < count && blocked != all; ++k) {
+                const std::uint32_t inst = scene->top_.prim_ids[k];
+                const SceneInstance& in = scene->instances_[inst];
+                const SceneObject& o = scene->objects_[in.object];
+                const Ray* r = rays;
+                if (!in.identity) {
+                    for (unsigned i = 0; i < n; ++i) local[i] = object_ray(in, rays[i], rays[i].tmax);
+                    r = local;
+                }
+                blocked |= any_hit_packet(o.blocks.tree, o.blocks.leaves(), r, n, keep_for(inst));
+            }
+            return blocked;
         }
         template <class K, class S>
         bool any(RayData, const Ray& ray, std::uint32_t first, std::uint32_t count, const K&, S) const {

@@ -6,6 +6,7 @@
 //   bool blocked = intersect_any(mesh, bvh, shadow_ray);
 //   Hit b = intersect_closest(blocks, ray);                   // BlockBvh (scene/block_bvh.hpp)
 //   Hit g = closest_hit(tree, leaves, ray, keep, &stats);     // the one walk those call
+//   closest_hit_packet(tree, leaves, rays, nullptr, n, hits);  // n <= kPacketWidth rays as one packet
 //
 // The acceleration concept is a tree shape (bvh/node.hpp's binary Bvh, bvh/wide.hpp's 4- and
 // 8-wide trees: traverse<Mode> walks each) composed with a leaf store that tests the triangles of
@@ -16,8 +17,12 @@
 //                        order, one 4-lane watertight test per block (the fastest CPU path).
 //   Scene's instance store (scene/scene.hpp) is a third: a top-level leaf maps the ray into an
 //                        object and runs closest_hit on that object's tree.
-// closest_hit / any_hit are the only CPU traversals: every query of raykit (meshes, blocks,
-// scenes, the renderer) goes through them, so a change to the walk or a leaf loop is made once.
+// closest_hit / any_hit are the only CPU single-ray traversals: every query of raykit (meshes,
+// blocks, scenes, the renderer) goes through them, so a change to the walk or a leaf loop is
+// made once. Batches of coherent rays take closest_hit_packet / any_hit_packet: up to
+// kPacketWidth rays share one walk of a wide tree (bvh/traverse_packet.hpp) over the same leaf
+// stores' per-ray leaf loops, and each ray gets its single-ray answer bit for bit (the batch
+// calls intersect_closest(blocks, rays, hits) and Scene::intersect_closest(rays, hits)).
 //
 // A leaf filter `keep(prim, u, v)` (true = a real hit) runs only on candidate hits: alpha
 // cut-outs and user callbacks. AcceptAll, the default, is compiled out. The optional Stats
@@ -33,6 +38,7 @@
 #include <type_traits>
 
 #include "raykit/bvh/traverse.hpp"
+#include "raykit/bvh/traverse_packet.hpp"
 #include "raykit/bvh/traverse_wide.hpp"
 #include "raykit/intersect/triangle.hpp"
 #include "raykit/intersect/triangle4.hpp"
@@ -186,6 +192,77 @@ RAYKIT_INLINE bool any_hit(const Tree& tree, const Leaves& leaves, const Ray& ra
             return leaves.any(rd, ray, first, count, keep, stats);
         },
         stats);
+}
+
+/// A tree a packet can walk (bvh/traverse_packet.hpp): the 4- and 8-wide trees.
+template <class T>
+inline constexpr bool kPacketTree = false;
+template <int W>
+inline constexpr bool kPacketTree<WideBvhT<W>> = true;
+
+/// Closest accepted hits of rays[0, n) (n ≤ kPacketWidth) walked as one packet: hits[k] is
+/// closest_hit_within(tree, leaves, rays[k], tmax[k], keep) bit for bit (tmax null: each
+/// ray's own tmax). Trees a packet cannot walk (the binary Bvh) are walked ray by ray.
+template <class Tree, class Leaves, class Keep = AcceptAll>
+RAYKIT_INLINE void closest_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, const float* tmax,
+                                      unsigned n, Hit* hits, const Keep& keep = {}) {
+    if constexpr (!kPacketTree<Tree>) {
+        for (unsigned k = 0; k < n; ++k)
+            hits[k] = closest_hit_within(tree, leaves, rays[k], tmax ? tmax[k] : rays[k].tmax, keep);
+    } else {
+        RayPacket<> p(rays, n);
+        typename Leaves::RayData rd[kPacketWidth];
+        for (unsigned k = 0; k < n; ++k) {
+            if (tmax) p.tmax[k] = tmax[k];
+            hits[k] = Hit{};
+            rd[k] = Leaves::prepare(rays[k]);
+        }
+        unsigned todo = n >= 32 ? ~0u : (1u << n) - 1;
+        while (todo) {
+            const unsigned oct = p.octant[std::countr_zero(todo)];
+            const unsigned lanes = p.lanes_of_octant(oct) & todo;
+            todo &= ~lanes;
+            traverse_packet<ClosestHit>(tree, p, lanes, oct, [&](std::uint32_t first, std::uint32_t count, unsigned m)
+                                                                  RAYKIT_LAMBDA_INLINE {
+                for (; m; m &= m - 1) {
+                    const int k = std::countr_zero(m);
+                    leaves.closest(rd[k], rays[k], first, count, p.tmax[k], hits[k], keep, nullptr);
+                }
+                return 0u;
+            });
+        }
+    }
+}
+
+/// Any-hit of rays[0, n) (n ≤ kPacketWidth) walked as one packet: bit k set when rays[k] has
+/// an accepted hit in [tmin, tmax] (any_hit's answer, lane by lane).
+template <class Tree, class Leaves, class Keep = AcceptAll>
+RAYKIT_INLINE unsigned any_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, unsigned n,
+                                      const Keep& keep = {}) {
+    unsigned hit = 0;
+    if constexpr (!kPacketTree<Tree>) {
+        for (unsigned k = 0; k < n; ++k) hit |= unsigned(any_hit(tree, leaves, rays[k], keep)) << k;
+    } else {
+        const RayPacket<> p(rays, n);
+        typename Leaves::RayData rd[kPacketWidth];
+        for (unsigned k = 0; k < n; ++k) rd[k] = Leaves::prepare(rays[k]);
+        unsigned todo = n >= 32 ? ~0u : (1u << n) - 1;
+        while (todo) {
+            const unsigned oct = p.octant[std::countr_zero(todo)];
+            const unsigned lanes = p.lanes_of_octant(oct) & todo;
+            todo &= ~lanes;
+            hit |= traverse_packet<AnyHit>(tree, p, lanes, oct, [&](std::uint32_t first, std::uint32_t count, unsigned m)
+                                                                      RAYKIT_LAMBDA_INLINE {
+                unsigned done = 0;
+                for (; m; m &= m - 1) {
+                    const int k = std::countr_zero(m);
+                    if (leaves.any(rd[k], rays[k], first, count, keep, nullptr)) done |= 1u << k;
+                }
+                return done;
+            });
+        }
+    }
+    return hit;
 }
 
 /// The index store of `tree` (built over `mesh`) for triangle test `Test`.

@@ -1,0 +1,237 @@
+// raykit/bvh/traverse_packet.hpp — a packet of rays walking a WideBvh / WideBvh8 together.
+//
+// The coherent-ray form of traverse<Mode> (bvh/traverse_wide.hpp): up to kPacketWidth rays
+// (16 with AVX-512, else 8) share one walk. At a node each child box is slab-tested against
+// every ray of the packet in one vector operation, the node is fetched once for all of them,
+// and a child is entered by the rays whose own test enters it (a lane mask travels with every
+// stack entry). Leaves get the mask and test those rays one by one with the single-ray leaf
+// store, so what each ray tests is what its own walk could test.
+//
+// Why answers stay bit-identical to single rays: each lane's box test is the single-ray
+// test's arithmetic on that lane (the same (plane − origin)·(1/d), max/min chains whose NaN
+// operands never decide, exit distance widened by the same factor), and a closest hit is the
+// smallest (t, triangle index) over the triangles a ray tests whose boxes it enters — which
+// does not depend on the order nodes are visited or on how far other rays pruned. So the walk
+// may visit in packet order, not per-ray order, and return every ray's single-ray answer
+// (tests/test_bvh.cpp checks it against single rays on random, camera and mixed-octant rays).
+//
+// All lanes of a walk share one octant (the signs of the direction pick the near planes, as a
+// single ray's do); a packet whose rays point into several octants is walked once per octant
+// present, each time with the other lanes off.
+//
+// Ordering: children are entered nearest first by the entry distance of the packet's first
+// active ray (the others follow it: camera tiles and shadow rays to one light are coherent).
+// A popped entry is re-tested against its lanes' current tmax (its box is read again from the
+// parent node, still in cache), so lanes that found nearer hits drop out before its leaf.
+//
+// Stack: as the single-ray walk, at most W − 1 entries per wide level.
+#pragma once
+
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+#include <stdexcept>
+#include <type_traits>
+
+#include "raykit/bvh/traverse_wide.hpp"
+
+#if defined(__AVX512F__) && !defined(RAYKIT_NO_SIMD)
+#include <immintrin.h>
+#define RAYKIT_PACKET_AVX512 1
+#else
+#define RAYKIT_PACKET_AVX512 0
+#endif
+
+namespace raykit {
+
+/// Rays per packet: 16 where the target has AVX-512 (one register per lane quantity), else 8.
+inline constexpr int kPacketWidth = RAYKIT_PACKET_AVX512 ? 16 : 8;
+
+namespace detail {
+
+template <int N>
+struct PacketLanes;
+template <>
+struct PacketLanes<8> {
+    typedef float f __attribute__((vector_size(32)));
+    typedef std::int32_t i __attribute__((vector_size(32)));
+};
+template <>
+struct PacketLanes<16> {
+    typedef float f __attribute__((vector_size(64)));
+    typedef std::int32_t i __attribute__((vector_size(64)));
+};
+
+/// One bit per lane of a comparison result (lanes are 0 or −1).
+template <int N>
+RAYKIT_INLINE unsigned lane_bits(const typename PacketLanes<N>::i& m) noexcept {
+#if RAYKIT_PACKET_AVX512
+    if constexpr (N == 16) return _mm512_cmplt_epi32_mask(reinterpret_cast<__m512i>(m), _mm512_setzero_si512());
+#endif
+#if RAYKIT_WIDE_AVX
+    if constexpr (N == 8) return static_cast<unsigned>(_mm256_movemask_ps(reinterpret_cast<__m256>(m)));
+#endif
+    unsigned b = 0;
+    for (int k = 0; k < N; ++k) b |= unsigned(m[k] & 1) << k;
+    return b;
+}
+
+}  // namespace detail
+
+/// The per-lane state of a packet walk: origins, reciprocal directions, intervals. Lanes at
+/// or past `count` hold a copy of lane 0 and are never active.
+template <int N = kPacketWidth>
+struct RayPacket {
+    using vf = typename detail::PacketLanes<N>::f;
+    static constexpr int kLanes = N;
+    vf org[3], inv[3], tmin;
+    alignas(64) float tmax[std::size_t(N)];  ///< per lane; closest-hit leaves shrink it
+    std::uint8_t octant[std::size_t(N)];     ///< 3 bits: the signs of the direction (RayInv)
+    unsigned count = 0;                      ///< lanes holding a ray
+
+    RayPacket(const Ray* rays, unsigned n) noexcept : count(n) {
+        for (int k = 0; k < N; ++k) {
+            const Ray& r = rays[unsigned(k) < n ? k : 0];
+            const RayInv ri(r.dir);
+            for (int a = 0; a < 3; ++a) {
+                org[a][k] = r.org[a];
+                inv[a][k] = ri.inv[a];
+            }
+            tmin[k] = r.tmin;
+            tmax[k] = r.tmax;
+            octant[k] = std::uint8_t(ri.octant[0] | ri.octant[1] << 1 | ri.octant[2] << 2);
+        }
+    }
+    /// Lanes in [0, count) whose octant is `oct`.
+    unsigned lanes_of_octant(unsigned oct) const noexcept {
+        unsigned m = 0;
+        for (unsigned k = 0; k < count; ++k) m |= unsigned(octant[k] == oct) << k;
+        return m;
+    }
+};
+
+namespace detail {
+
+/// Lanes of `mask` whose rays enter child `i` of `n` within their [tmin, tmax]: the single-ray
+/// test (WideSlabRay::test) lane by lane, near planes chosen by the walk's common octant.
+template <int W, int N>
+RAYKIT_INLINE unsigned packet_enter(const WideNodeT<W>& n, int i, const RayPacket<N>& p, const int* near_row,
+                                    const int* far_row, unsigned mask, float* tn_out) noexcept {
+    // vectors stay local (no vector parameters or returns: a consumer without AVX would get
+    // -Wpsabi for 32-byte ones); x > y ? x : y is MAXPS (a NaN x gives y), as the single ray's
+    using vf = typename RayPacket<N>::vf;
+    vf tmax;
+    __builtin_memcpy(&tmax, p.tmax, sizeof(tmax));
+    const vf tnx = (n.planes[near_row[0]][i] - p.org[0]) * p.inv[0];
+    const vf tny = (n.planes[near_row[1]][i] - p.org[1]) * p.inv[1];
+    const vf tnz = (n.planes[near_row[2]][i] - p.org[2]) * p.inv[2];
+    const vf tfx = (n.planes[far_row[0]][i] - p.org[0]) * p.inv[0];
+    const vf tfy = (n.planes[far_row[1]][i] - p.org[1]) * p.inv[1];
+    const vf tfz = (n.planes[far_row[2]][i] - p.org[2]) * p.inv[2];
+    const vf n1 = tnz > p.tmin ? tnz : p.tmin;
+    const vf n2 = tny > n1 ? tny : n1;
+    const vf tn = tnx > n2 ? tnx : n2;
+    const vf f1 = tfz < tmax ? tfz : tmax;
+    const vf f2 = tfy < f1 ? tfy : f1;
+    const vf tf = (tfx < f2 ? tfx : f2) * kSlabExitScale;
+    if (tn_out) __builtin_memcpy(tn_out, &tn, sizeof(tn));
+    return lane_bits<N>(tn <= tf) & mask;
+}
+
+}  // namespace detail
+
+/// Walks `bvh` with the lanes `lanes` of packet `p` (one octant, `oct`). `leaf(first, count,
+/// mask)` tests the leaf's slots for the rays of `mask` and returns the lanes it finished
+/// (any-hit: lanes that found a hit, which then leave the walk; closest-hit: 0, the leaf
+/// shrinks p.tmax instead). Returns the lanes finished.
+template <class Mode = ClosestHit, int W, int N, class LeafFn>
+RAYKIT_INLINE unsigned traverse_packet(const WideBvhT<W>& bvh, const RayPacket<N>& p, unsigned lanes, unsigned oct,
+                                       LeafFn&& leaf) {
+    if (bvh.nodes.empty() || lanes == 0) return 0;
+    const WideNodeT<W>* RAYKIT_RESTRICT nodes = bvh.nodes.data();
+    int near_row[3], far_row[3];
+    for (int a = 0; a < 3; ++a) {
+        const int o = int(oct >> a) & 1;
+        near_row[a] = 2 * a + o;
+        far_row[a] = 2 * a + 1 - o;
+    }
+    // the root box, as the single-ray walk tests it first: a one-child node of its bounds
+    WideNodeT<W> root;
+    for (int c = 0; c < W; ++c) root.clear(c);
+    root.set_box(0, bvh.bounds);
+    unsigned active = detail::packet_enter(root, 0, p, near_row, far_row, lanes, nullptr);
+    if (!active) return 0;
+
+    struct Entry {
+        std::uint32_t index, count;  // count 0: a wide node; else a leaf's first slot and slot count
+        std::uint32_t parent;        // the node holding its box, and the slot
+        std::uint32_t slot_mask;     // slot << 24 | lane mask (N <= 16)
+    };
+    constexpr int kStack = (W - 1) * RAYKIT_BVH_MAX_DEPTH + 1;
+    Entry stack[std::size_t(kStack)];
+    int sp = 0;
+    unsigned finished = 0;
+    std::uint32_t cur_index = 0, cur_count = 0;
+    unsigned cur_mask = active;
+    for (;;) {
+        if (cur_count == 0) {
+            const WideNodeT<W>& n = nodes[cur_index];
+            const int lead = std::countr_zero(cur_mask);  // the ray whose distances order the children
+            float key[std::size_t(W)];
+            unsigned mask[std::size_t(W)];
+            int entered[std::size_t(W)];
+            int k = 0;
+            for (int i = 0; i < W; ++i) {
+                alignas(64) float tn[std::size_t(N)];
+                const unsigned m = detail::packet_enter(n, i, p, near_row, far_row, cur_mask, tn);
+                if (!m) continue;
+                // insertion by the lead ray's entry distance (stable: ties keep slot order)
+                int j = k++;
+                const float t = tn[lead];
+                while (j > 0 && key[j - 1] > t) {
+                    key[j] = key[j - 1];
+                    mask[j] = mask[j - 1];
+                    entered[j] = entered[j - 1];
+                    --j;
+                }
+                key[j] = t;
+                mask[j] = m;
+                entered[j] = i;
+            }
+            if (k > 0) {
+                if (sp + k - 1 > kStack)
+                    throw std::length_error("raykit::traverse_packet: wide tree deeper than RAYKIT_BVH_MAX_DEPTH");
+                for (int j = k - 1; j >= 1; --j) {
+                    const int i = entered[j];
+                    stack[sp++] = {n.index[i], n.count[i], cur_index, std::uint32_t(i) << 24 | mask[j]};
+                }
+                cur_index = n.index[entered[0]];
+                cur_count = n.count[entered[0]];
+                cur_mask = mask[0];
+                continue;
+            }
+        } else {
+            const unsigned done = leaf(cur_index, cur_count, cur_mask);
+            if constexpr (Mode::any_hit) {
+                finished |= done;
+                active &= ~done;
+                if (!active) return finished;
+            }
+        }
+        for (;;) {
+            if (sp == 0) return finished;
+            const Entry e = stack[--sp];
+            unsigned m = e.slot_mask & 0xFFFFFFu & active;
+            if (!m) continue;
+            m = detail::packet_enter(nodes[e.parent], int(e.slot_mask >> 24), p, near_row, far_row, m, nullptr);
+            if (m) {
+                cur_index = e.index;
+                cur_count = e.count;
+                cur_mask = m;
+                break;
+            }
+        }
+    }
+}
+
+}  // namespace raykit
