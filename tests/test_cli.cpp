@@ -243,17 +243,17 @@ TEST(CliInputs, TraceRefusesADirectoryAsRaysAndWritesNoHits) {
     fs::create_directories(dir);
     fs::remove(hits);
     const Result r = run("trace " + scene.string() + " " + dir.string() + " " + hits.string());
-    expect_clean_error(r, 1, dir.string() + ":0: is a directory");
+    expect_clean_error(r, 1, dir.string() + ": is a directory");
     EXPECT_FALSE(fs::exists(hits)) << "a HITS file was written";
 }
 
 TEST(CliInputs, DeviceFilesAreRefusedNotReadForever) {
     if (!fs::exists("/dev/zero")) GTEST_SKIP() << "no /dev/zero";
-    expect_clean_error(run("info /dev/zero"), 1, "/dev/zero:0: is not a regular file");
+    expect_clean_error(run("info /dev/zero"), 1, "/dev/zero: is not a regular file");
     const fs::path scene = tmpdir() / "in_sphere2.obj";
     save_obj(make_icosphere(1), scene);
     expect_clean_error(run("trace " + scene.string() + " /dev/zero " + (tmpdir() / "h.txt").string()), 1,
-                       "/dev/zero:0: is not a regular file");
+                       "/dev/zero: is not a regular file");
 }
 
 TEST(CliInputs, RaysUseTheObjNumberRule) {
@@ -511,7 +511,7 @@ TEST(CliBounds, ImagesRaysAndFramesHaveDocumentedLimits) {
 
 TEST(CliBounds, ScenesThatAreNotRegularFilesAreRefused) {
     for (const std::string& bad : {std::string("/dev/zero"), tmpdir().string()}) {
-        const std::string why = bad == "/dev/zero" ? ":0: is not a regular file" : ":0: is a directory";
+        const std::string why = bad == "/dev/zero" ? ": is not a regular file" : ": is a directory";
         expect_one_error_line(run_bounded("info " + bad), 1, bad + why, "info " + bad);
         expect_one_error_line(run_bounded("render " + bad + " " + (tmpdir() / "x.png").string()), 1, bad + why,
                               "render " + bad);
@@ -686,4 +686,21 @@ TEST(CliAnimate, OutputPatternNamesEveryFrame) {
     ASSERT_EQ(r.code, 0) << r.err;
     for (const char* f : {"f_00.png", "f_01.png", "f_02.png"}) EXPECT_TRUE(fs::exists(dir / f)) << f;
     EXPECT_FALSE(fs::exists(dir / "f_03.png"));
+}
+
+// ------------------------------------------------------------------ issue 15: a missing file has no line
+
+TEST(CliIssue15, AMissingFileHasNoLineNumber) {
+    // "FILE: cannot open file: ...", not "FILE:0: ..." (no line to name)
+    const std::string png = (tmpdir() / "m.png").string();
+    const std::pair<std::string, std::string> cases[] = {
+        {"info /nonexistent_raykit/scene.obj", "/nonexistent_raykit/scene.obj"},
+        {"skin /nonexistent_raykit/ref.smd", "/nonexistent_raykit/ref.smd"},
+        {"render /nonexistent_raykit/scene.obj " + png, "/nonexistent_raykit/scene.obj"},
+    };
+    for (const auto& [cmd, file] : cases) {
+        const Result r = run(cmd);
+        expect_one_error_line(r, 1, file + ": cannot open file", cmd);
+        EXPECT_EQ(r.err.find(":0:"), std::string::npos) << r.err;
+    }
 }
