@@ -54,7 +54,8 @@
 //       The arguments on a CLI11 app (raykit.cpp's `animate` subcommand), then what the
 //       parser cannot check; bad usage is a raykit_cli::UsageError (exit code 2).
 //   int raykit_cli::run_animate(const AnimateArgs&);
-//       Renders the frames. Returns 0; other std::exceptions for failures (exit code 1).
+//       Renders the frames. Returns 0; other std::exceptions for failures (exit code 1), e.g.
+//       an ANIM none of whose bones is in REF's skeleton.
 //   int raykit_cli_animate(int argc, char** argv, int first_arg);
 //       All three for argv[first_arg ..], the arguments after `animate`.
 //   raykit_cli::AnimateArgs raykit_cli::parse_animate_args(int argc, char** argv, int first_arg);
@@ -96,6 +97,7 @@
 #include "raykit/scene/build_options.hpp"
 #include "raykit/scene/scene.hpp"
 #include "cli_render.hpp"  // the render flags' shared limits (kMaxPixels)
+#include "cli_skin.hpp"    // load_animation_for
 #if RAYKIT_CLI_HAVE_CL
 #include "raykit/cl.hpp"
 #include "raykit/cl/render.hpp"
@@ -279,7 +281,7 @@ inline int run_animate(const AnimateArgs& a) {
     using clock = std::chrono::steady_clock;
     auto ms = [](clock::time_point a) { return std::chrono::duration<double, std::milli>(clock::now() - a).count(); };
     const SmdModel model = load_smd_reference(a.reference);
-    const SmdSkeletonAnim anim = load_smd_animation(a.animation, model);
+    const SmdSkeletonAnim anim = load_animation_for(a.animation, model, a.reference);
     for (const std::string& w : model.mesh.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
     for (const std::string& w : anim.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
     if (anim.frame_count() == 0) throw std::runtime_error(a.animation + ": no frames");

@@ -29,8 +29,8 @@
 //       (exit code 2).
 //   int raykit_cli::run_skin(const SkinArgs&);
 //       Prints the corners. Every other failure throws another std::exception
-//       (raykit::ParseError for bad files, std::runtime_error for FRAME beyond the last frame
-//       or an output error): exit code 1.
+//       (raykit::ParseError for bad files, std::runtime_error for FRAME beyond the last frame,
+//       an animation none of whose bones is in REF's skeleton, or an output error): exit code 1.
 //   int raykit_cli_skin(int argc, char** argv, int first_arg);
 //       Both for argv[first_arg ..], the arguments after `skin`.
 //   raykit_cli::SkinArgs raykit_cli::parse_skin_args(int argc, char** argv, int first_arg);
@@ -41,6 +41,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -111,6 +112,26 @@ inline SkinArgs parse_skin_args(int argc, char** argv, int first_arg) {
     return a;
 }
 
+/// load_smd_animation(file, model), refused (std::runtime_error, one line) when none of the
+/// file's bones is in the model's skeleton: it would animate nothing and only show the bind pose.
+inline raykit::SmdSkeletonAnim load_animation_for(const std::string& file, const raykit::SmdModel& model,
+                                                  const std::string& model_file) {
+    // reference bones the file does not animate keep this marker; then the bind pose
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const std::vector<raykit::BonePose> unset(model.bones.size(), raykit::BonePose{raykit::vec3(nan), raykit::vec3(nan)});
+    raykit::SmdSkeletonAnim anim = raykit::load_smd_animation(file, model.bones, unset);
+    bool any = false;
+    for (std::vector<raykit::BonePose>& frame : anim.frames)
+        for (std::size_t i = 0; i < frame.size(); ++i) {
+            if (std::isnan(frame[i].position.x)) frame[i] = i < model.bind_pose.size() ? model.bind_pose[i] : raykit::BonePose{};
+            else any = true;
+        }
+    if (!any && !anim.frames.empty() && !model.bones.empty())
+        throw std::runtime_error(file + ": none of its bones is in the skeleton of " + model_file +
+                                 " (an animation of another model?)");
+    return anim;
+}
+
 inline std::string skin_corners_text(const SkinArgs& a, std::vector<std::string>* warnings) {
     const raykit::SmdModel model = raykit::load_smd_reference(a.reference);
     if (warnings) warnings->insert(warnings->end(), model.mesh.warnings.begin(), model.mesh.warnings.end());
@@ -119,7 +140,7 @@ inline std::string skin_corners_text(const SkinArgs& a, std::vector<std::string>
     if (a.animation.empty()) {
         local = skeleton.bind_transforms();
     } else {
-        const raykit::SmdSkeletonAnim anim = raykit::load_smd_animation(a.animation, model);
+        const raykit::SmdSkeletonAnim anim = load_animation_for(a.animation, model, a.reference);
         if (warnings) warnings->insert(warnings->end(), anim.warnings.begin(), anim.warnings.end());
         const double last = static_cast<double>(anim.frame_count()) - 1.0;
         if (a.frame > last) {

@@ -462,11 +462,23 @@ CLI::App* add_generate(CLI::App& app, GenerateArgs& a) {
 int cmd_generate(const GenerateArgs& a) {
     check_files({}, {a.out});
     Mesh m;
-    if (a.kind == "torus") m = make_bumpy_torus(a.tris);
-    else if (a.kind == "icosphere") m = make_icosphere(icosphere_level_for(a.tris));
-    else m = make_random_soup(a.tris, a.seed);
+    std::string note;
+    if (a.kind == "torus") {
+        m = make_bumpy_torus(a.tris);
+        if (m.triangle_count() != a.tris) note = " (the nearest torus grid to --tris " + std::to_string(a.tris) + ")";
+    } else if (a.kind == "icosphere") {
+        const unsigned level = icosphere_level_for(a.tris);
+        m = make_icosphere(level);
+        if (m.triangle_count() != a.tris)
+            note = " (icosphere level " + std::to_string(level) + ", the largest within --tris " +
+                   std::to_string(a.tris) + "; levels have 20 x 4^k triangles, the next " +
+                   std::to_string(m.triangle_count() * 4) + ")";
+    } else {
+        m = make_random_soup(a.tris, a.seed);
+    }
     save_obj(m, a.out);
-    std::printf("wrote %s: %zu triangles, %zu vertices\n", a.out.c_str(), m.triangle_count(), m.vertex_count());
+    std::printf("wrote %s: %zu triangles%s, %zu vertices\n", a.out.c_str(), m.triangle_count(), note.c_str(),
+                m.vertex_count());
     return 0;
 }
 

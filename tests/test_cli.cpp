@@ -783,6 +783,38 @@ TEST(CliHelp, LeafSizeIsTheOneNameForTheLargestLeaf) {
 
 // ------------------------------------------------------------------ issue 15: small items
 
+TEST(CliIssue15, GenerateSaysWhichIcosphereItMade) {
+    const fs::path out = tmpdir() / "ico15.obj";
+    const Result r = run("generate icosphere " + out.string() + " --tris 5000");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(load_obj(out).triangle_count(), 1280u);
+    EXPECT_NE(r.out.find("1280 triangles (icosphere level 3, the largest within --tris 5000"), std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("the next 5120"), std::string::npos) << r.out;
+    const Result exact = run("generate icosphere " + out.string() + " --tris 1280");
+    ASSERT_EQ(exact.code, 0) << exact.err;
+    EXPECT_EQ(exact.out.find('('), std::string::npos) << "nothing to explain: " << exact.out;
+}
+
+TEST(CliIssue15, SkinRefusesAnAnimationOfAnotherSkeleton) {
+    const fs::path dir = write_cube_animation(
+        "skin_other", "nodes\n0 \"hip\" -1\n1 \"knee\" 0\nend\nskeleton\ntime 0\n0 0 0 0 0 0 0\n1 0 0 1 0 0 0\nend\n");
+    const Result r = run("skin " + (dir / "cube.smd").string() + " " + (dir / "anim.smd").string() + " 0");
+    expect_one_error_line(r, 1, "anim.smd: none of its bones is in the skeleton of " + (dir / "cube.smd").string(),
+                          "skin with a foreign animation");
+    EXPECT_EQ(r.err.find("warning"), std::string::npos) << "one line, not a warning per bone: " << r.err;
+    EXPECT_TRUE(r.out.empty()) << "no bind pose printed";
+    // an animation of the cube's own bone still works
+    write(dir / "own.smd", "nodes\n0 \"root\" -1\nend\nskeleton\ntime 0\n0 0 0 1 0 0 0\nend\n");
+    const Result ok = run("skin " + (dir / "cube.smd").string() + " " + (dir / "own.smd").string() + " 0");
+    ASSERT_EQ(ok.code, 0) << ok.err;
+    EXPECT_EQ(std::count(ok.out.begin(), ok.out.end(), '\n'), 36);
+    // and animate refuses the foreign one the same way
+    expect_one_error_line(run("animate " + (dir / "cube.smd").string() + " " + (dir / "anim.smd").string() + " " +
+                              (dir / "f_%d.png").string() + " --width 8 --height 8"),
+                          1, "none of its bones is in the skeleton", "animate with a foreign animation");
+}
+
 TEST(CliIssue15, AMissingFileHasNoLineNumber) {
     // "FILE: cannot open file: ...", not "FILE:0: ..." (no line to name)
     const std::string png = (tmpdir() / "m.png").string();
