@@ -730,6 +730,55 @@ std::set<std::string> help_commands() {
     return commands;
 }
 
+fs::path readme_path() { return fs::path(RAYKIT_TEST_DATA_DIR) / ".." / ".." / "README.md"; }
+
+/// The lines of README.md's fenced blocks: {in the "## Command line" synopsis?, line}.
+std::vector<std::pair<bool, std::string>> readme_block_lines() {
+    std::istringstream in(slurp(readme_path()));
+    std::vector<std::pair<bool, std::string>> out;
+    bool in_block = false, in_section = false, synopsis_done = false, synopsis = false;
+    for (std::string line; std::getline(in, line);) {
+        if (line.rfind("## ", 0) == 0) in_section = line == "## Command line";
+        if (line.rfind("```", 0) == 0) {
+            if (!in_block) synopsis = in_section && !synopsis_done;
+            else if (synopsis) synopsis_done = true;
+            in_block = !in_block;
+            continue;
+        }
+        if (in_block) out.emplace_back(synopsis, line);
+    }
+    return out;
+}
+
+/// README's synopsis: the flags of each command ("raykit CMD ..." lines and their indented
+/// continuations; "# ..." comments left out).
+std::map<std::string, std::set<std::string>> readme_synopsis() {
+    std::map<std::string, std::set<std::string>> flags;
+    std::string command;
+    for (const auto& [synopsis, raw] : readme_block_lines()) {
+        if (!synopsis) continue;
+        const std::string line = raw.substr(0, raw.find('#'));
+        std::istringstream words(line);
+        std::string w;
+        if (line.rfind("raykit ", 0) == 0) {
+            words >> w >> command;  // "raykit", the command
+            flags[command];
+        } else if (line.empty() || line[0] != ' ') {
+            command.clear();
+            continue;
+        }
+        while (words >> w) {
+            // "[--width", "W]", "[--light", "--flag]..."
+            const auto at = w.find("--");
+            if (at == std::string::npos) continue;
+            std::string f = w.substr(at);
+            f = f.substr(0, f.find_first_of("]|. "));
+            if (!command.empty() && f.size() > 2) flags[command].insert(f);
+        }
+    }
+    return flags;
+}
+
 std::string joined(const std::set<std::string>& s) {
     std::string out;
     for (const std::string& x : s) out += x + " ";
@@ -779,6 +828,74 @@ TEST(CliHelp, LeafSizeIsTheOneNameForTheLargestLeaf) {
     // and keeps its range, named as given
     expect_one_error_line(run("info " + scene.string() + " --leaf 0"), 2, "--leaf: must be in 1..4294967295",
                           "--leaf 0");
+}
+
+TEST(CliReadme, SynopsisListsExactlyTheFlagsOfEachCommandsHelp) {
+    if (!fs::exists(readme_path())) GTEST_SKIP() << readme_path() << " not found";
+    const std::map<std::string, std::set<std::string>> readme = readme_synopsis();
+    std::set<std::string> readme_commands;
+    for (const auto& [c, f] : readme) readme_commands.insert(c);
+    EXPECT_EQ(readme_commands, help_commands()) << "README synopsis: " << joined(readme_commands);
+    for (const auto& [c, flags] : readme) {
+        const std::set<std::string> help = help_flags(c);
+        for (const std::string& f : flags) EXPECT_EQ(help.count(f), 1u) << "README lists " << c << " " << f;
+        for (const std::string& f : help) EXPECT_EQ(flags.count(f), 1u) << c << " --help lists " << f;
+    }
+    // the parse above sees what it should
+    ASSERT_TRUE(readme.count("render"));
+    EXPECT_EQ(readme.at("render").count("--background"), 1u);
+    EXPECT_EQ(readme.at("info").count("--device"), 1u);  // from the second "raykit info" line
+}
+
+TEST(CliReadme, EveryExampleCommandRuns) {
+#ifdef RAYKIT_SHARED_DATA_DIR
+    const fs::path shared = fs::path(RAYKIT_SHARED_DATA_DIR);
+#else
+    const fs::path shared;
+#endif
+    if (shared.empty() || !fs::exists(shared)) GTEST_SKIP() << "shared data (../shared/data) not found";
+    if (!fs::exists(readme_path())) GTEST_SKIP() << readme_path() << " not found";
+    std::vector<std::string> examples;
+    for (const auto& [synopsis, line] : readme_block_lines())
+        if (!synopsis && line.rfind("raykit ", 0) == 0) examples.push_back(line);
+    ASSERT_FALSE(examples.empty()) << "README has no raykit example";
+    // as from the repository root: ../shared/data beside it, out/ for outputs
+    const fs::path root = tmpdir() / "readme" / "repo";
+    fs::create_directories(root / "out");
+    std::error_code ec;
+    fs::create_directory_symlink(fs::absolute(shared).parent_path(), root.parent_path() / "shared", ec);
+    ASSERT_TRUE(fs::exists(root / ".." / "shared" / "data")) << ec.message();
+    for (const std::string& line : examples) {
+        EXPECT_EQ(line.find_first_of("[]<>"), std::string::npos) << "not a runnable command: " << line;
+        std::istringstream words(line);
+        std::vector<std::string> w;
+        for (std::string x; words >> x;) w.push_back(x);
+        // the files it writes: arguments under out/, a frame pattern for each frame
+        long first = 0, frames = 1;
+        for (std::size_t i = 0; i + 1 < w.size(); ++i) {
+            if (w[i] == "--first") first = std::stol(w[i + 1]);
+            if (w[i] == "--frames") frames = std::stol(w[i + 1]);
+        }
+        std::vector<fs::path> outputs;
+        for (const std::string& x : w) {
+            if (x.rfind("out/", 0) != 0) continue;
+            const auto pct = x.find('%');
+            if (pct == std::string::npos) {
+                outputs.push_back(root / x);
+                continue;
+            }
+            for (long k = first; k < first + frames; ++k) {
+                char num[32];
+                std::snprintf(num, sizeof num, "%0*ld", x[pct + 1] == '0' ? x[pct + 2] - '0' : 0, k);
+                outputs.push_back(root / (x.substr(0, pct) + num + x.substr(x.find('d', pct) + 1)));
+            }
+        }
+        ASSERT_FALSE(outputs.empty()) << "no output under out/: " << line;
+        for (const fs::path& o : outputs) fs::remove(o);
+        const Result r = run_sh("cd '" + root.string() + "' && \"$RAYKIT\" " + line.substr(7));
+        EXPECT_EQ(r.code, 0) << line << "\n" << r.err;
+        for (const fs::path& o : outputs) EXPECT_TRUE(fs::exists(o) && fs::file_size(o) > 0) << o << " from " << line;
+    }
 }
 
 // ------------------------------------------------------------------ issue 15: small items
