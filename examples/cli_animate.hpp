@@ -48,19 +48,22 @@
 // With --device cl the whole frame runs on the device (DeviceScene update,
 // then DeviceRenderer over it): no vertex is read back, only the image.
 //
-// Entry point:
+// Entry points:
+//   void raykit_cli::add_animate_options(CLI::App&, AnimateArgs&);
+//   void raykit_cli::finish_animate_args(AnimateArgs&);
+//       The arguments on a CLI11 app (raykit.cpp's `animate` subcommand), then what the
+//       parser cannot check; bad usage is a raykit_cli::UsageError (exit code 2).
+//   int raykit_cli::run_animate(const AnimateArgs&);
+//       Renders the frames. Returns 0; other std::exceptions for failures (exit code 1), e.g.
+//       an ANIM none of whose bones is in REF's skeleton.
 //   int raykit_cli_animate(int argc, char** argv, int first_arg);
-//       argv[first_arg] is the first argument after `animate`. Returns 0.
-//       Throws RaykitCliAnimateUsageError (a std::invalid_argument) for bad
-//       usage (the caller prints raykit_cli_animate_usage(), exit code 2),
-//       other std::exceptions for failures (exit code 1).
-//   const char* raykit_cli_animate_usage();
+//       All three for argv[first_arg ..], the arguments after `animate`.
 //   raykit_cli::AnimateArgs raykit_cli::parse_animate_args(int argc, char** argv, int first_arg);
 //       Also checks OUT (a usage error for a bad pattern, or for --frames N > 1
 //       with an OUT without a conversion).
 //   std::string raykit_cli::animate_frame_name(const std::string& pattern, long k);
 //       OUT with its conversion replaced by k (OUT as is without one); throws
-//       RaykitCliAnimateUsageError for a pattern the rules above reject.
+//       raykit_cli::UsageError for a pattern the rules above reject.
 #pragma once
 
 #include <algorithm>
@@ -94,37 +97,15 @@
 #include "raykit/scene/build_options.hpp"
 #include "raykit/scene/scene.hpp"
 #include "cli_render.hpp"  // the render flags' shared limits (kMaxPixels)
+#include "cli_skin.hpp"    // load_animation_for
 #if RAYKIT_CLI_HAVE_CL
 #include "raykit/cl.hpp"
 #include "raykit/cl/render.hpp"
 #endif
 
-/// Bad command-line usage of `raykit animate` (exit code 2).
-struct RaykitCliAnimateUsageError : std::invalid_argument {
-    using std::invalid_argument::invalid_argument;
-};
-
-inline const char* raykit_cli_animate_usage() {
-    return R"(usage:
-  raykit animate REF.smd ANIM.smd OUT_%03d.png [options]
-
-  --scene STATIC.obj        render the character inside this static scene
-  --frames N                frames to render (default: every frame of ANIM)
-  --first F                 first frame number (default 0)
-  --fps F                   output frame rate (default: the animation's)
-  --device cpu|cl           where skinning + refit run (default cpu)
-  --width W  --height H     image size (default 640 x 480)
-  --spp N                   samples per pixel (default 1)
-  --max-depth D             reflection/refraction bounces (default 2)
-  --camera EX EY EZ TX TY TZ  eye and target (default: frame the character)
-  --fov DEG                 vertical field of view (default 45)
-  --light X Y Z R G B       point light (repeatable; default: a key light)
-  --place X Z               where the character stands (default: scene centre)
-  --char-height H           character height in scene units (default 1.8)
-  --yaw DEG                 turn the character about the vertical (default -50: facing the default camera)
-  --threads T               worker threads, 0 = all (default 0)
-)";
-}
+/// Bad command-line usage of `raykit animate`: the one raykit_cli::UsageError (exit code 2); this
+/// name is kept for code written against the hand-written parser it replaced.
+using RaykitCliAnimateUsageError = raykit_cli::UsageError;
 
 namespace raykit_cli {
 
@@ -142,20 +123,10 @@ struct AnimateArgs {
     std::optional<std::pair<float, float>> place;
     float char_height = 1.8f;
     float yaw = -50.0f;  ///< faces the default camera
+    // as parsed, before finish_animate_args
+    std::string device = "cpu";
+    std::vector<float> camera_values, light_values, place_values;
 };
-
-namespace detail_animate {
-
-inline double number(const std::string& opt, const char* s) {
-    const std::string v = s;
-    double d = 0.0;
-    const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), d);
-    if (ec != std::errc() || p != v.data() + v.size() || !std::isfinite(d))
-        throw RaykitCliAnimateUsageError(opt + " expects a number, got '" + v + "'");
-    return d;
-}
-
-}  // namespace detail_animate
 
 inline constexpr int kAnimateMaxWidth = 32;  ///< widest %Nd field in OUT
 
@@ -201,103 +172,93 @@ inline bool animate_pattern_has_conversion(const std::string& pattern) {
     return detail_animate::out_conversion(pattern).at != std::string::npos;
 }
 
-inline AnimateArgs parse_animate_args(int argc, char** argv, int first_arg) {
-    using detail_animate::number;
-    AnimateArgs a;
-    std::vector<std::string> pos;
-    auto need = [&](int i, int n, const std::string& opt) {
-        if (i + n >= argc) throw RaykitCliAnimateUsageError(opt + " needs " + std::to_string(n) + " value(s)");
-    };
-    // integer flags: the parser and ranges of `raykit render` (cli_render.hpp) where the flags are the same
-    auto count = [&](const std::string& opt, const char* text) {
-        namespace cr = raykit::detail::cli_render;
-        const std::uint64_t lo = (opt == "--first" || opt == "--threads" || opt == "--max-depth") ? 0 : 1;
-        const std::uint64_t hi = opt == "--threads"                      ? raykit::kMaxThreads
-                                 : opt == "--width" || opt == "--height" ? cr::kMaxSide
-                                 : opt == "--spp"                        ? cr::kMaxSpp
-                                 : opt == "--max-depth"                  ? cr::kMaxDepth
-                                                                         : 1000000000;
-        std::uint64_t v = 0;
-        if (std::string why = cr::count_problem(opt, text, lo, hi, v); !why.empty())
-            throw RaykitCliAnimateUsageError(why);
-        return v;
-    };
-    for (int i = first_arg; i < argc; ++i) {
-        const std::string s = argv[i];
-        if (s == "--scene") {
-            need(i, 1, s);
-            a.scene = argv[++i];
-        } else if (s == "--device") {
-            need(i, 1, s);
-            const std::string v = argv[++i];
-            if (v == "cpu") {
-                a.device_cl = false;
-            } else if (v == "cl") {
-#if RAYKIT_CLI_HAVE_CL
-                a.device_cl = true;
-#else
-                throw RaykitCliAnimateUsageError("--device cl: this raykit was built without OpenCL");
+/// The arguments and options of `raykit animate` on a CLI11 app, filling `a` (then
+/// finish_animate_args). Integer flags have the ranges of `raykit render`'s.
+inline void add_animate_options(CLI::App& app, AnimateArgs& a) {
+    namespace cr = raykit::detail::cli_render;
+    app.add_option("REF.smd", a.reference, "the character: reference SMD")->required()->type_name("");
+    app.add_option("ANIM.smd", a.animation, "its animation SMD (bones matched by name)")->required()->type_name("");
+    app.add_option("OUT_%03d.png", a.output, "frame files: one %d, %Nd or %0Nd (N <= 32) for the frame number")
+        ->required()
+        ->type_name("");
+    app.add_option("--scene", a.scene, "render the character inside this static scene")->type_name("STATIC.obj");
+    app.add_option("--frames", a.frames, "frames to render, 1..1000000000 (default: every frame of ANIM)")
+        ->type_name("N")
+        ->transform(count_in(1, 1000000000));
+    app.add_option("--first", a.first, "first frame number, 0..1000000000 (default 0)")
+        ->type_name("F")
+        ->transform(count_in(0, 1000000000));
+    app.add_option("--fps", a.fps, "output frame rate, > 0 (default: the animation's)")
+        ->type_name("F")
+        ->check(real_in([](double d) { return d > 0.0; }, "must be > 0"));
+    app.add_option("--device", a.device, "where the frame runs: cpu (default) or cl (skinning, refit, render on the device)")
+        ->type_name("")
+        ->check(CLI::IsMember({"cpu", "cl"}));
+    app.add_option("--width", a.width, "image width, 1..65536 (default 640; at most 16777216 pixels in all)")
+        ->type_name("W")
+        ->transform(count_in(1, cr::kMaxSide));
+    app.add_option("--height", a.height, "image height, 1..65536 (default 480)")
+        ->type_name("H")
+        ->transform(count_in(1, cr::kMaxSide));
+    app.add_option("--spp", a.spp, "samples per pixel, 1..65536 (default 1)")->type_name("N")->transform(count_in(1, cr::kMaxSpp));
+    app.add_option("--max-depth", a.max_depth, "reflection/refraction bounces, 0..1000 (default 2)")
+        ->type_name("D")
+        ->transform(count_in(0, cr::kMaxDepth));
+    app.add_option("--camera", a.camera_values, "eye and target (default: frame the character)")
+        ->type_name("EX EY EZ TX TY TZ")
+        ->expected(6)
+        ->check(finite());
+    app.add_option("--fov", a.fov, "vertical field of view in degrees, in (0, 180) (default 45)")
+        ->type_name("DEG")
+        ->check(real_in([](double d) { return d > 0.0 && d < 180.0; }, "must be in (0, 180)"));
+    app.add_option("--light", a.light_values, "point light, repeatable (default: a key light)")
+        ->type_name("X Y Z R G B")
+        ->expected(6)
+        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
+        ->check(finite());
+    app.add_option("--place", a.place_values, "where the character stands (default: the scene's centre)")
+        ->type_name("X Z")
+        ->expected(2)
+        ->check(finite());
+    app.add_option("--char-height", a.char_height, "character height in scene units, > 0 (default 1.8)")
+        ->type_name("H")
+        ->check(real_in([](double d) { return d > 0.0; }, "must be > 0"));
+    app.add_option("--yaw", a.yaw, "turn the character about the vertical, degrees (default -50: facing the default camera)")
+        ->type_name("DEG")
+        ->check(finite());
+    app.add_option("--threads", a.threads, "worker threads, 0..1024, 0 = all (default 0)")
+        ->type_name("T")
+        ->transform(count_in(0, raykit::kMaxThreads));
+}
+
+/// What the parser cannot check: OUT's pattern (and one file for several frames), the image
+/// size, --device cl in a build without OpenCL; the vectors become camera, lights, place.
+inline void finish_animate_args(AnimateArgs& a) {
+    a.device_cl = a.device == "cl";
+#if !RAYKIT_CLI_HAVE_CL
+    if (a.device_cl) throw UsageError("--device cl: this raykit was built without OpenCL");
 #endif
-            } else {
-                throw RaykitCliAnimateUsageError("--device must be cpu or cl");
-            }
-        } else if (s == "--frames" || s == "--first" || s == "--width" || s == "--height" || s == "--spp" ||
-                   s == "--threads" || s == "--max-depth") {
-            need(i, 1, s);
-            const std::uint64_t v = count(s, argv[++i]);
-            if (s == "--frames") a.frames = long(v);
-            else if (s == "--first") a.first = long(v);
-            else if (s == "--width") a.width = std::uint32_t(v);
-            else if (s == "--height") a.height = std::uint32_t(v);
-            else if (s == "--spp") a.spp = unsigned(v);
-            else if (s == "--threads") a.threads = unsigned(v);
-            else a.max_depth = unsigned(v);
-        } else if (s == "--fps" || s == "--fov" || s == "--char-height" || s == "--yaw") {
-            need(i, 1, s);
-            const double v = number(s, argv[++i]);
-            if (s == "--fps") {
-                if (!(v > 0.0)) throw RaykitCliAnimateUsageError("--fps must be > 0");
-                a.fps = v;
-            } else if (s == "--fov") {
-                if (!(v > 0.0 && v < 180.0)) throw RaykitCliAnimateUsageError("--fov must be in (0, 180)");
-                a.fov = float(v);
-            } else if (s == "--char-height") {
-                if (!(v > 0.0)) throw RaykitCliAnimateUsageError("--char-height must be > 0");
-                a.char_height = float(v);
-            } else {
-                a.yaw = float(v);
-            }
-        } else if (s == "--camera") {
-            need(i, 6, s);
-            float v[6];
-            for (float& x : v) x = float(number(s, argv[++i]));
-            a.camera = {{v[0], v[1], v[2]}, {v[3], v[4], v[5]}};
-        } else if (s == "--light") {
-            need(i, 6, s);
-            float v[6];
-            for (float& x : v) x = float(number(s, argv[++i]));
-            a.lights.push_back(raykit::Light::point({v[0], v[1], v[2]}, {v[3], v[4], v[5]}));
-        } else if (s == "--place") {
-            need(i, 2, s);
-            const float x = float(number(s, argv[++i]));
-            const float z = float(number(s, argv[++i]));
-            a.place = {{x, z}};
-        } else if (s.size() > 1 && s[0] == '-' && s[1] == '-') {
-            throw RaykitCliAnimateUsageError("unknown option " + s);
-        } else {
-            pos.push_back(s);
-        }
-    }
-    if (pos.size() != 3) throw RaykitCliAnimateUsageError("animate takes REF.smd ANIM.smd OUT_%03d.png");
-    a.reference = pos[0];
-    a.animation = pos[1];
-    a.output = pos[2];
+    const std::vector<float>& c = a.camera_values;
+    if (c.size() == 6) a.camera = {{c[0], c[1], c[2]}, {c[3], c[4], c[5]}};
+    const std::vector<float>& l = a.light_values;
+    a.lights.clear();
+    for (std::size_t i = 0; i + 6 <= l.size(); i += 6)
+        a.lights.push_back(raykit::Light::point({l[i], l[i + 1], l[i + 2]}, {l[i + 3], l[i + 4], l[i + 5]}));
+    if (a.place_values.size() == 2) a.place = {{a.place_values[0], a.place_values[1]}};
     if (!animate_pattern_has_conversion(a.output) && a.frames > 1)
-        throw RaykitCliAnimateUsageError("OUT '" + a.output + "' has no %d conversion but --frames " +
-                                         std::to_string(a.frames) + " would write every frame to that one file");
+        throw UsageError("OUT '" + a.output + "' has no %d conversion but --frames " + std::to_string(a.frames) +
+                         " would write every frame to that one file");
     if (std::uint64_t(a.width) * a.height > raykit::detail::cli_render::kMaxPixels)
-        throw RaykitCliAnimateUsageError("the image must be at most " +
-                                         std::to_string(raykit::detail::cli_render::kMaxPixels) + " pixels");
+        throw UsageError("the image must be at most " + std::to_string(raykit::detail::cli_render::kMaxPixels) +
+                         " pixels");
+}
+
+inline AnimateArgs parse_animate_args(int argc, char** argv, int first_arg) {
+    AnimateArgs a;
+    CLI::App app{"", "raykit animate"};
+    add_animate_options(app, a);
+    parse_args(app, argc, argv, first_arg);
+    finish_animate_args(a);
     return a;
 }
 
@@ -313,14 +274,14 @@ inline std::string animate_frame_name(const std::string& pattern, long k) {
 
 }  // namespace raykit_cli
 
-inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
+namespace raykit_cli {
+
+inline int run_animate(const AnimateArgs& a) {
     using namespace raykit;
     using clock = std::chrono::steady_clock;
     auto ms = [](clock::time_point a) { return std::chrono::duration<double, std::milli>(clock::now() - a).count(); };
-    const raykit_cli::AnimateArgs a = raykit_cli::parse_animate_args(argc, argv, first_arg);  // checks OUT too
-
     const SmdModel model = load_smd_reference(a.reference);
-    const SmdSkeletonAnim anim = load_smd_animation(a.animation, model);
+    const SmdSkeletonAnim anim = load_animation_for(a.animation, model, a.reference);
     for (const std::string& w : model.mesh.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
     for (const std::string& w : anim.warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
     if (anim.frame_count() == 0) throw std::runtime_error(a.animation + ": no frames");
@@ -473,4 +434,10 @@ inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
                     sum[1] / frames, sum[2] / frames, sum[3] / frames, sum[4] / frames, sum[5] / frames, frames);
     }
     return 0;
+}
+
+}  // namespace raykit_cli
+
+inline int raykit_cli_animate(int argc, char** argv, int first_arg) {
+    return raykit_cli::run_animate(raykit_cli::parse_animate_args(argc, argv, first_arg));  // checks OUT too
 }

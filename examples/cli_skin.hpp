@@ -19,31 +19,34 @@
 // OpenCL device it fails with raykit::cl::NoDeviceError (exit code 1).
 // Loader warnings go to stderr as "raykit: warning: ...".
 //
-// Entry point:
+// Entry points:
+//   void raykit_cli::add_skin_options(CLI::App&, SkinArgs&);
+//   void raykit_cli::finish_skin_args(CLI::App&, SkinArgs&);
+//       The arguments on a CLI11 app (raykit.cpp's `skin` subcommand), then what the parser
+//       cannot check. Bad usage — wrong number of arguments, an unknown option, an option
+//       without its value, --interp other than slerp/euler, --device other than cpu/cl (cl only
+//       in OpenCL builds), FRAME not a finite number >= 0 — is a raykit_cli::UsageError
+//       (exit code 2).
+//   int raykit_cli::run_skin(const SkinArgs&);
+//       Prints the corners. Every other failure throws another std::exception
+//       (raykit::ParseError for bad files, std::runtime_error for FRAME beyond the last frame,
+//       an animation none of whose bones is in REF's skeleton, or an output error): exit code 1.
 //   int raykit_cli_skin(int argc, char** argv, int first_arg);
-//       argv[first_arg] is the first argument after `skin`. Returns 0.
-//       Throws raykit_cli::SkinUsageError (derived from std::runtime_error)
-//       for bad usage — wrong number of arguments, an unknown option, an
-//       option without its value, --interp other than slerp/euler, --device
-//       other than cpu/cl (cl only in OpenCL builds), FRAME not a finite number >= 0 — which the caller
-//       should report with the usage text and exit code 2. Every other
-//       failure throws another std::exception (raykit::ParseError for bad
-//       files, std::runtime_error for FRAME beyond the last frame or an
-//       output error): exit code 1.
+//       Both for argv[first_arg ..], the arguments after `skin`.
 //   raykit_cli::SkinArgs raykit_cli::parse_skin_args(int argc, char** argv, int first_arg);
 //   std::string raykit_cli::skin_corners_text(const SkinArgs&, std::vector<std::string>* warnings);
 //       The two halves of the command, for tests: the parsed arguments, and
 //       the exact text the command prints.
 #pragma once
 
-#include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 #include <string>
-#include <system_error>
 #include <vector>
 
+#include "cli_common.hpp"
 #include "raykit/anim/interpolate.hpp"
 #include "raykit/anim/skeleton.hpp"
 #include "raykit/anim/skinning.hpp"
@@ -56,13 +59,9 @@
 
 namespace raykit_cli {
 
-/// Bad command-line usage of `raykit skin` (map to exit code 2).
-struct SkinUsageError : std::runtime_error {
-    using std::runtime_error::runtime_error;
-};
-
-inline constexpr const char* kSkinUsage =
-    "  raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu|cl]\n";
+/// Bad command-line usage of `raykit skin`: the one raykit_cli::UsageError (exit code 2); this
+/// name is kept for code written against the hand-written parser it replaced.
+using SkinUsageError = UsageError;
 
 struct SkinArgs {
     std::string reference;
@@ -70,54 +69,67 @@ struct SkinArgs {
     double frame = 0.0;
     raykit::Interpolation interp = raykit::Interpolation::slerp;
     bool device_cl = false;  ///< --device cl: skin on the OpenCL device
+    // as parsed, before finish_skin_args
+    std::string interp_name = "slerp", device = "cpu";
+    bool frame_given = false;
 };
+
+/// The arguments and options of `raykit skin` on a CLI11 app, filling `a` (then finish_skin_args).
+inline void add_skin_options(CLI::App& app, SkinArgs& a) {
+    app.add_option("REF.smd", a.reference, "the reference SMD: skeleton, bind pose, skinned mesh")
+        ->required()
+        ->type_name("");
+    app.add_option("ANIM.smd", a.animation, "an animation SMD (bones matched by name); without it, the bind pose")
+        ->type_name("");
+    app.add_option("FRAME", a.frame, "frame number of ANIM, fractional allowed, in 0..last frame")
+        ->type_name("")
+        ->check(real_in([](double d) { return d >= 0.0; }, "must be a number >= 0"));
+    app.add_option("--interp", a.interp_name, "between frames: slerp (default) or euler (per-axis lerp)")
+        ->type_name("")
+        ->check(CLI::IsMember({"slerp", "euler"}));
+    app.add_option("--device", a.device, "where to skin: cpu (default) or cl (the OpenCL device)")
+        ->type_name("")
+        ->check(CLI::IsMember({"cpu", "cl"}));
+}
+
+/// What the parser cannot check: ANIM.smd comes with FRAME; --device cl needs an OpenCL build.
+inline void finish_skin_args(CLI::App& app, SkinArgs& a) {
+    a.frame_given = app.count("FRAME") > 0;
+    if (!a.animation.empty() && !a.frame_given) throw UsageError("skin takes REF.smd [ANIM.smd FRAME]: FRAME is missing");
+    a.interp = a.interp_name == "euler" ? raykit::Interpolation::euler : raykit::Interpolation::slerp;
+    a.device_cl = a.device == "cl";
+#if !RAYKIT_CLI_HAVE_CL
+    if (a.device_cl) throw UsageError("--device cl: this raykit was built without OpenCL");
+#endif
+}
 
 inline SkinArgs parse_skin_args(int argc, char** argv, int first_arg) {
     SkinArgs a;
-    std::vector<std::string> pos;
-    for (int i = first_arg; i < argc; ++i) {
-        const std::string s = argv[i];
-        if (s == "--interp" || s == "--device") {
-            if (i + 1 >= argc) throw SkinUsageError(s + " needs a value");
-            const std::string v = argv[++i];
-            if (s == "--interp") {
-                if (v == "slerp") {
-                    a.interp = raykit::Interpolation::slerp;
-                } else if (v == "euler") {
-                    a.interp = raykit::Interpolation::euler;
-                } else {
-                    throw SkinUsageError("unknown --interp '" + v + "' (known: slerp, euler)");
-                }
-            } else if (v == "cpu") {
-                a.device_cl = false;
-            } else if (v == "cl") {
-#if RAYKIT_CLI_HAVE_CL
-                a.device_cl = true;
-#else
-                throw SkinUsageError("--device cl: this raykit was built without OpenCL");
-#endif
-            } else {
-                throw SkinUsageError("unknown --device '" + v + "' (known: cpu, cl)");
-            }
-        } else if (s.size() > 1 && s[0] == '-' && s[1] == '-') {
-            throw SkinUsageError("unknown option " + s);
-        } else {
-            pos.push_back(s);
-        }
-    }
-    if (pos.size() != 1 && pos.size() != 3) throw SkinUsageError("skin takes REF.smd [ANIM.smd FRAME]");
-    a.reference = pos[0];
-    if (pos.size() == 3) {
-        a.animation = pos[1];
-        const std::string& f = pos[2];
-        double v = 0.0;
-        const auto [p, ec] = std::from_chars(f.data(), f.data() + f.size(), v);
-        if (ec != std::errc() || p != f.data() + f.size() || !std::isfinite(v) || v < 0.0) {
-            throw SkinUsageError("FRAME must be a number >= 0, got '" + f + "'");
-        }
-        a.frame = v;
-    }
+    CLI::App app{"", "raykit skin"};
+    add_skin_options(app, a);
+    parse_args(app, argc, argv, first_arg);
+    finish_skin_args(app, a);
     return a;
+}
+
+/// load_smd_animation(file, model), refused (std::runtime_error, one line) when none of the
+/// file's bones is in the model's skeleton: it would animate nothing and only show the bind pose.
+inline raykit::SmdSkeletonAnim load_animation_for(const std::string& file, const raykit::SmdModel& model,
+                                                  const std::string& model_file) {
+    // reference bones the file does not animate keep this marker; then the bind pose
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const std::vector<raykit::BonePose> unset(model.bones.size(), raykit::BonePose{raykit::vec3(nan), raykit::vec3(nan)});
+    raykit::SmdSkeletonAnim anim = raykit::load_smd_animation(file, model.bones, unset);
+    bool any = false;
+    for (std::vector<raykit::BonePose>& frame : anim.frames)
+        for (std::size_t i = 0; i < frame.size(); ++i) {
+            if (std::isnan(frame[i].position.x)) frame[i] = i < model.bind_pose.size() ? model.bind_pose[i] : raykit::BonePose{};
+            else any = true;
+        }
+    if (!any && !anim.frames.empty() && !model.bones.empty())
+        throw std::runtime_error(file + ": none of its bones is in the skeleton of " + model_file +
+                                 " (an animation of another model?)");
+    return anim;
 }
 
 inline std::string skin_corners_text(const SkinArgs& a, std::vector<std::string>* warnings) {
@@ -128,7 +140,7 @@ inline std::string skin_corners_text(const SkinArgs& a, std::vector<std::string>
     if (a.animation.empty()) {
         local = skeleton.bind_transforms();
     } else {
-        const raykit::SmdSkeletonAnim anim = raykit::load_smd_animation(a.animation, model);
+        const raykit::SmdSkeletonAnim anim = load_animation_for(a.animation, model, a.reference);
         if (warnings) warnings->insert(warnings->end(), anim.warnings.begin(), anim.warnings.end());
         const double last = static_cast<double>(anim.frame_count()) - 1.0;
         if (a.frame > last) {
@@ -171,15 +183,18 @@ inline std::string skin_corners_text(const SkinArgs& a, std::vector<std::string>
     return out;
 }
 
-}  // namespace raykit_cli
-
-inline int raykit_cli_skin(int argc, char** argv, int first_arg) {
-    const raykit_cli::SkinArgs args = raykit_cli::parse_skin_args(argc, argv, first_arg);
+inline int run_skin(const SkinArgs& args) {
     std::vector<std::string> warnings;
-    const std::string text = raykit_cli::skin_corners_text(args, &warnings);
+    const std::string text = skin_corners_text(args, &warnings);
     for (const std::string& w : warnings) std::fprintf(stderr, "raykit: warning: %s\n", w.c_str());
     if (std::fwrite(text.data(), 1, text.size(), stdout) != text.size() || std::fflush(stdout) != 0) {
         throw std::runtime_error("error writing the output");
     }
     return 0;
+}
+
+}  // namespace raykit_cli
+
+inline int raykit_cli_skin(int argc, char** argv, int first_arg) {
+    return raykit_cli::run_skin(raykit_cli::parse_skin_args(argc, argv, first_arg));
 }

@@ -1,6 +1,8 @@
-// raykit — command line front end of the raykit library.
+// raykit — command line front end of the raykit library. One CLI11 parser (cli_common.hpp):
+// `raykit --help` lists the commands, `raykit COMMAND --help` a command's arguments and flags;
+// README.md's "Command line" synopsis lists the same flags (tests/test_cli.cpp checks both ways).
 //
-//   raykit info SCENE.obj [--builder sah] [--leaf N] [--threads T] [--json]
+//   raykit info SCENE.obj [--builder sah] [--leaf-size N] [--threads T] [--json]
 //   raykit trace SCENE.obj RAYS.txt HITS.txt [--any-hit] [--test watertight|mt|thesis] [...]
 //   raykit check SCENE.obj [--rays N] [--seed S] [...]
 //   raykit generate torus|icosphere|soup OUT.obj [--tris N] [--seed S]
@@ -8,9 +10,12 @@
 //   raykit animate REF.smd ANIM.smd OUT_%03d.png [--scene STATIC.obj] [--frames N] [...]
 //   raykit render SCENE.obj OUT.png [...]
 //
+// The largest leaf is --leaf-size in every command (info, trace and check still take the old
+// --leaf, hidden, with a warning).
+//
 // Every error ends with a one-line reason on stderr and a non-zero exit:
-// 2 for bad usage (after the usage text), 1 for anything else (no usage text:
-// a library error is never taken for a bad flag). Out of memory is one line
+// 2 for bad usage (after a short usage line and where to find the full help), 1 for anything
+// else (no usage line: a library error is never taken for a bad flag). Out of memory is one line
 // too, "raykit: error: out of memory (...)", never a bare std::bad_alloc.
 //
 // Bounds (issue 12): every numeric flag has a range, checked before any work;
@@ -21,13 +26,10 @@
 // 139 MB written in 4 s on a loaded 2-core machine; 10^7 took 76 s and 1.4 GB).
 // --threads is at most raykit::kMaxThreads (1024); 2^31 once overflowed a
 // shift in the binned SAH and hung.
-#include <charconv>
 #include <chrono>
 #include <cstdio>
-#include <cstring>
 #include <fstream>
 #include <iostream>
-#include <map>
 #include <limits>
 #include <new>
 #include <random>
@@ -53,97 +55,9 @@
 namespace {
 
 using namespace raykit;
+using raykit_cli::UsageError;
+using raykit_cli::count_in;
 using Clock = std::chrono::steady_clock;
-
-struct UsageError : std::runtime_error {
-    using std::runtime_error::runtime_error;
-};
-
-constexpr const char* kUsage = R"(usage:
-  raykit info SCENE.obj [--builder NAME] [--window W] [--axis A] [--metric M] [--pairing P] [--radius R] [--optimize on|off]
-                        [--leaf N] [--leaf-block B] [--threads T] [--json]
-  raykit info --device         lists OpenCL platforms and devices, and which one raykit picks and why
-  raykit animate-test SCENE.obj [--frames N]   a "wave" vertex hook moves a dynamic copy each frame (N in 1..1000): refit, TLAS, trace, device and CPU
-  raykit trace SCENE.obj RAYS.txt HITS.txt [--builder NAME] [--any-hit] [--test watertight|mt|thesis] [--threads T] [--device cpu|cl]
-  raykit check SCENE.obj [--rays N] [--seed S] [--builder NAME] [--test watertight|mt|thesis] [--threads T]
-  raykit generate torus|icosphere|soup OUT.obj [--tris N] [--seed S]
-                 N in 1..1000000 (default 100000): about N for the torus, the largest icosphere level within N
-  raykit skin REF.smd [ANIM.smd FRAME] [--interp slerp|euler] [--device cpu|cl]
-  raykit animate REF.smd ANIM.smd OUT_%03d.png [--scene STATIC.obj] [--frames N] [--fps F] [--device cpu|cl]
-                 ...render flags (raykit animate alone lists all options)
-  raykit render SCENE.obj OUT.png [--width W] [--height H] [--spp N] [--max-depth D] [--shader NAME]
-                [--camera EX EY EZ TX TY TZ] [--up UX UY UZ] [--fov DEG] [--light X Y Z R G B]... (raykit render alone lists all options)
-
-  --rays N         check: random rays, 1..1000000 (default 2000)
-  --builder NAME   BVH builder: sah (binned SAH, default), pairwise, sortaxis, ploc
-  --leaf N         largest leaf (primitives), default 8
-  --leaf-block B   SAH counts leaves in blocks of B primitives (1 default; 4 with --leaf 12 suits
-                   the CPU trace, which tests leaves 4 triangles at a time)
-  --window W       sortaxis: candidates per element, 1..4096, default 2 (the thesis used 6)
-  --axis A         sortaxis: x | longest | morton (default)
-  --metric M       pairwise: centre (default) | area; sortaxis: area (default) | centre
-  --pairing P      sortaxis: mutual (default: mutual nearest neighbours) | greedy (the thesis's rule)
-  --radius R       ploc: neighbours searched each way, 1..1024, default 4
-  --optimize on|off  sortaxis, ploc: post-pass (reinsertion + treelets); default on for ploc, off for sortaxis
-  --threads T      worker threads, 0..1024, 0 = all (default)
-  --test NAME      ray/triangle test: watertight (default), mt (Moller-Trumbore), thesis
-skin: prints the skinned position of every triangle corner (triangles in file order), one "x y z" per line;
-      FRAME may be fractional; without ANIM, the bind pose.
-RAYS.txt: one ray per line, "ox oy oz dx dy dz tmin tmax" (tmax may be inf).
-HITS.txt: one line per ray, "prim t u v" ("-1 0 0 0" on a miss); with --any-hit "1" or "0".
-)";
-
-/// Parsed "--flag value" options plus positional arguments.
-struct Args {
-    std::vector<std::string> pos;
-    std::map<std::string, std::string> opt;
-    std::vector<std::string> flags;
-
-    Args(int argc, char** argv, int first, const std::vector<std::string>& valued,
-         const std::vector<std::string>& boolean) {
-        for (int i = first; i < argc; ++i) {
-            std::string a = argv[i];
-            if (a.rfind("--", 0) == 0) {
-                if (std::find(valued.begin(), valued.end(), a) != valued.end()) {
-                    if (i + 1 >= argc) throw UsageError(a + " needs a value");
-                    opt[a] = argv[++i];
-                } else if (std::find(boolean.begin(), boolean.end(), a) != boolean.end()) {
-                    flags.push_back(a);
-                } else {
-                    throw UsageError("unknown option " + a);
-                }
-            } else {
-                pos.push_back(std::move(a));
-            }
-        }
-    }
-    bool has(const std::string& f) const { return std::find(flags.begin(), flags.end(), f) != flags.end(); }
-    std::string get(const std::string& k, const std::string& def) const {
-        auto it = opt.find(k);
-        return it == opt.end() ? def : it->second;
-    }
-    template <class T>
-    T number(const std::string& k, T def) const {
-        auto it = opt.find(k);
-        if (it == opt.end()) return def;
-        T v{};
-        const char* b = it->second.data();
-        const char* e = b + it->second.size();
-        auto [p, ec] = std::from_chars(b, e, v);
-        if (ec != std::errc() || p != e) throw UsageError(k + " expects a number, got '" + it->second + "'");
-        return v;
-    }
-    /// Integer option `k` in [lo, hi], `def` when absent; anything else is a UsageError naming the range.
-    template <class T>
-    T count(const std::string& k, T def, std::uint64_t lo, std::uint64_t hi) const {
-        auto it = opt.find(k);
-        if (it == opt.end()) return def;
-        std::uint64_t v = 0;
-        if (std::string why = raykit::detail::cli_render::count_problem(k, it->second, lo, hi, v); !why.empty())
-            throw UsageError(why);
-        return static_cast<T>(v);
-    }
-};
 
 /// Most rays `check` makes (see the header comment).
 constexpr std::uint64_t kMaxCheckRays = 1'000'000;
@@ -152,44 +66,86 @@ constexpr std::uint64_t kMaxGenerateTris = 1'000'000;
 /// Most frames `animate-test` runs.
 constexpr std::uint64_t kMaxAnimateTestFrames = 1000;
 
+constexpr const char* kNoOpenCL =
+    "this raykit was built without OpenCL (install ocl-icd-opencl-dev, opencl-clhpp-headers and pocl-opencl-icd, "
+    "then rebuild)";
+
 /// Every output checked writable and every input a regular file, before any work.
 void check_files(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs) {
     for (const std::string& o : outputs) raykit::detail::cli_render::check_writable(o);
     for (const std::string& i : inputs) raykit::detail::check_text_file(i);
 }
 
-/// Options every command that builds a tree takes.
-const std::vector<std::string> kTreeFlags = {"--builder", "--leaf",    "--leaf-block", "--threads", "--window",
-                                             "--axis",    "--metric",  "--pairing",    "--radius",  "--optimize"};
+/// The flags of every command that builds a tree (info, trace, check).
+struct TreeArgs {
+    std::string builder = "sah", axis = "morton";
+    std::string metric, pairing, optimize;  ///< empty: the builder's own default
+    unsigned leaf_size = 8, leaf_block = 1, threads = 0;
+    unsigned window = BuildOptions{}.window, radius = BuildOptions{}.radius;
+    CLI::App* app = nullptr;  ///< the command, to ask whether the deprecated --leaf was given
+};
 
-std::vector<std::string> with_tree_flags(std::vector<std::string> v) {
-    v.insert(v.end(), kTreeFlags.begin(), kTreeFlags.end());
-    return v;
+void add_tree_options(CLI::App& app, TreeArgs& t) {
+    t.app = &app;
+    app.add_option("--builder", t.builder, "BVH builder: sah (binned SAH, default), pairwise, sortaxis, ploc")
+        ->type_name("")
+        ->check(CLI::IsMember({"sah", "pairwise", "sortaxis", "ploc"}));
+    app.add_option("--leaf-size", t.leaf_size, "largest leaf (primitives), >= 1 (default 8)")
+        ->type_name("N")
+        ->transform(count_in(1, std::numeric_limits<unsigned>::max()));
+    app.add_option("--leaf", t.leaf_size, "deprecated name of --leaf-size")
+        ->group(raykit_cli::Formatter::kDeprecated)  // not in --help
+        ->transform(count_in(1, std::numeric_limits<unsigned>::max()));
+    app.add_option("--leaf-block", t.leaf_block,
+                   "the SAH counts leaves in blocks of B primitives: 1 (default), 2, 4, 8 or 16 (4 with "
+                   "--leaf-size 12 suits the CPU trace, which tests leaves 4 triangles at a time)")
+        ->type_name("")
+        ->check(CLI::IsMember({1u, 2u, 4u, 8u, 16u}));
+    app.add_option("--threads", t.threads, "worker threads, 0..1024, 0 = all (default)")
+        ->type_name("T")
+        ->transform(count_in(0, kMaxThreads));
+    app.add_option("--window", t.window, "sortaxis: candidates per element, 1..4096 (default 2; the thesis used 6)")
+        ->type_name("W")
+        ->transform(count_in(1, 4096));
+    app.add_option("--axis", t.axis, "sortaxis: x, longest or morton (default)")
+        ->type_name("")
+        ->check(CLI::IsMember({"x", "longest", "morton"}));
+    app.add_option("--metric", t.metric, "pairwise: centre (default) or area; sortaxis: area (default) or centre")
+        ->type_name("")
+        ->check(CLI::IsMember({"centre", "area"}));
+    app.add_option("--pairing", t.pairing,
+                   "sortaxis: mutual (default: mutual nearest neighbours) or greedy (the thesis's rule)")
+        ->type_name("")
+        ->check(CLI::IsMember({"mutual", "greedy"}));
+    app.add_option("--radius", t.radius, "ploc: neighbours searched each way, 1..1024 (default 4)")
+        ->type_name("R")
+        ->transform(count_in(1, 1024));
+    app.add_option("--optimize", t.optimize,
+                   "sortaxis, ploc: post-pass (reinsertion + treelets); default on for ploc, off for sortaxis")
+        ->type_name("")
+        ->check(CLI::IsMember({"on", "off"}));
 }
 
-BuildOptions tree_options(const Args& a) {
+BuildOptions tree_options(const TreeArgs& a) {
+    if (a.app && a.app->count("--leaf") > 0)
+        std::fprintf(stderr, "raykit: warning: --leaf is deprecated, use --leaf-size (the same in every command)\n");
     BuildOptions o;
     try {
-        o.builder = BuildOptions::parse_builder(a.get("--builder", "sah"));
-        o.axis = BuildOptions::parse_axis(a.get("--axis", "morton"));
+        o.builder = BuildOptions::parse_builder(a.builder);
+        o.axis = BuildOptions::parse_axis(a.axis);
         // unset settings keep the chosen builder's own defaults
-        if (a.opt.count("--metric")) o.metric = BuildOptions::parse_metric(a.get("--metric", ""));
-        if (a.opt.count("--pairing")) o.pairing = BuildOptions::parse_pairing(a.get("--pairing", ""));
-        if (a.opt.count("--optimize")) {
-            const std::string v = a.get("--optimize", "");
-            if (v != "on" && v != "off") throw std::invalid_argument("--optimize takes on or off, not '" + v + "'");
-            o.optimize = v == "on" ? OptimizeConfig{} : OptimizeConfig::off();
-        }
+        if (!a.metric.empty()) o.metric = BuildOptions::parse_metric(a.metric);
+        if (!a.pairing.empty()) o.pairing = BuildOptions::parse_pairing(a.pairing);
+        if (!a.optimize.empty()) o.optimize = a.optimize == "on" ? OptimizeConfig{} : OptimizeConfig::off();
     } catch (const std::invalid_argument& e) {
         throw UsageError(e.what());
     }
-    constexpr unsigned kMaxUnsigned = std::numeric_limits<unsigned>::max();
-    o.leaf.max_leaf_size = a.count<unsigned>("--leaf", 8, 1, kMaxUnsigned);
-    o.leaf.leaf_block = a.number<unsigned>("--leaf-block", 1);
+    o.leaf.max_leaf_size = a.leaf_size;
+    o.leaf.leaf_block = a.leaf_block;
     if (!valid_leaf_block(o.leaf.leaf_block)) throw UsageError("--leaf-block must be 1, 2, 4, 8 or 16");
-    o.threads = a.count<unsigned>("--threads", 0, 0, kMaxThreads);
-    o.window = a.count<unsigned>("--window", o.window, 1, 4096);
-    o.radius = a.count<unsigned>("--radius", o.radius, 1, 1024);
+    o.threads = a.threads;
+    o.window = a.window;
+    o.radius = a.radius;
     return o;
 }
 
@@ -211,37 +167,52 @@ Mesh load_scene(const std::string& path) {
     return m;
 }
 
-int cmd_info(int argc, char** argv) {
-    Args a(argc, argv, 2, with_tree_flags({}), {"--json", "--device"});
-    if (a.has("--device") && a.pos.empty()) {
+struct InfoArgs {
+    std::string scene;
+    bool json = false, device = false;
+    TreeArgs tree;
+};
+
+CLI::App* add_info(CLI::App& app, InfoArgs& a) {
+    CLI::App* c = app.add_subcommand("info", "the scene and its tree: triangles, materials, nodes, leaves, depth, "
+                                             "SAH cost, build time, memory; or, with --device, the OpenCL devices");
+    c->add_option("SCENE.obj", a.scene, "the scene (OBJ)")->type_name("");
+    add_tree_options(*c, a.tree);
+    c->add_flag("--json", a.json, "one JSON object instead of the table");
+    c->add_flag("--device", a.device, "lists OpenCL platforms and devices, and which one raykit picks and why");
+    return c;
+}
+
+int cmd_info(const InfoArgs& a) {
+    if (a.device && a.scene.empty()) {
 #if RAYKIT_CLI_HAVE_CL
         raykit_cli_print_devices();
         return 0;
 #else
-        throw std::runtime_error("this raykit was built without OpenCL (install ocl-icd-opencl-dev, opencl-clhpp-headers and pocl-opencl-icd, then rebuild)");
+        throw std::runtime_error(kNoOpenCL);
 #endif
     }
-    if (a.pos.size() != 1) throw UsageError("info takes one SCENE.obj");
-    const BuildOptions t = tree_options(a);
-    check_files({a.pos[0]}, {});
-    const Mesh mesh = load_scene(a.pos[0]);
+    if (a.scene.empty()) throw UsageError("info takes one SCENE.obj (or --device)");
+    const BuildOptions t = tree_options(a.tree);
+    check_files({a.scene}, {});
+    const Mesh mesh = load_scene(a.scene);
     const auto t0 = Clock::now();
     const Bvh bvh = build_tree(mesh, t);
     const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     const double cost = sah_cost(bvh);
-    if (a.has("--json")) {
+    if (a.json) {
         std::printf(
             "{\"file\": \"%s\", \"triangles\": %zu, \"vertices\": %zu, \"materials\": %zu, \"builder\": \"%s\", "
             "\"settings\": \"%s\", \"max_leaf_size\": %u, \"leaf_block\": %u, \"nodes\": %zu, \"leaves\": %zu, \"depth\": %d, "
             "\"sah_cost\": %.6f, \"build_ms\": %.3f, \"memory_bytes\": %zu}\n",
-            a.pos[0].c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(),
+            a.scene.c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(),
             BuildOptions::name(t.builder), describe(t).c_str(), t.leaf.max_leaf_size, t.leaf.leaf_block, bvh.nodes.size(),
             bvh.leaf_count(), bvh.depth(), cost, ms, bvh.memory_bytes());
     } else {
         std::printf("file        %s\ntriangles   %zu\nvertices    %zu\nmaterials   %zu\nbuilder     %s (max leaf %u)\n"
                     "nodes       %zu\nleaves      %zu\ndepth       %d\nSAH cost    %.4f\nbuild       %.2f ms\n"
                     "memory      %zu bytes\n",
-                    a.pos[0].c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(),
+                    a.scene.c_str(), mesh.triangle_count(), mesh.vertex_count(), mesh.materials.size(),
                     describe(t).c_str(), t.leaf.max_leaf_size, bvh.nodes.size(), bvh.leaf_count(), bvh.depth(), cost,
                     ms, bvh.memory_bytes());
     }
@@ -250,12 +221,16 @@ int cmd_info(int argc, char** argv) {
 
 enum class TestKind { watertight, mt, thesis };
 
-TestKind test_kind(const Args& a) {
-    const std::string s = a.get("--test", "watertight");
-    if (s == "watertight") return TestKind::watertight;
+TestKind test_kind(const std::string& s) {
     if (s == "mt") return TestKind::mt;
     if (s == "thesis") return TestKind::thesis;
-    throw UsageError("unknown --test '" + s + "' (known: watertight, mt, thesis)");
+    return TestKind::watertight;
+}
+
+void add_test_option(CLI::App& c, std::string& test) {
+    c.add_option("--test", test, "ray/triangle test: watertight (default), mt (Moller-Trumbore), thesis")
+        ->type_name("")
+        ->check(CLI::IsMember({"watertight", "mt", "thesis"}));
 }
 
 template <class F>
@@ -267,21 +242,43 @@ decltype(auto) with_test(TestKind k, F&& f) {
     }
 }
 
-int cmd_trace(int argc, char** argv) {
-    Args a(argc, argv, 2, with_tree_flags({"--test", "--device"}), {"--any-hit"});
-    if (a.pos.size() != 3) throw UsageError("trace takes SCENE.obj RAYS.txt HITS.txt");
-    const BuildOptions t = tree_options(a);
-    const TestKind tk = test_kind(a);
-    const std::string device = a.get("--device", "cpu");
-    if (device != "cpu" && device != "cl") throw UsageError("--device must be cpu or cl");
+struct TraceArgs {
+    std::string scene, rays, hits, test = "watertight", device = "cpu";
+    bool any_hit = false;
+    TreeArgs tree;
+};
+
+CLI::App* add_trace(CLI::App& app, TraceArgs& a) {
+    CLI::App* c = app.add_subcommand("trace", "traces the rays of RAYS.txt, writes HITS.txt");
+    c->add_option("SCENE.obj", a.scene, "the scene (OBJ)")->required()->type_name("");
+    c->add_option("RAYS.txt", a.rays, "one ray per line, \"ox oy oz dx dy dz tmin tmax\" (tmax may be inf)")
+        ->required()
+        ->type_name("");
+    c->add_option("HITS.txt", a.hits,
+                  "one line per ray, \"prim t u v\" (\"-1 0 0 0\" on a miss); with --any-hit \"1\" or \"0\"")
+        ->required()
+        ->type_name("");
+    add_tree_options(*c, a.tree);
+    c->add_flag("--any-hit", a.any_hit, "occlusion only: 1 (something in the way) or 0 per ray");
+    add_test_option(*c, a.test);
+    c->add_option("--device", a.device, "cpu (default) or cl (the OpenCL device; the watertight test only)")
+        ->type_name("")
+        ->check(CLI::IsMember({"cpu", "cl"}));
+    return c;
+}
+
+int cmd_trace(const TraceArgs& a) {
+    const BuildOptions t = tree_options(a.tree);
+    const TestKind tk = test_kind(a.test);
+    const std::string& device = a.device;
     if (device == "cl" && tk != TestKind::watertight) throw UsageError("--device cl traces with the watertight test only");
-    check_files({a.pos[0], a.pos[1]}, {a.pos[2]});
-    const Mesh mesh = load_scene(a.pos[0]);
-    const std::vector<Ray> rays = read_rays(a.pos[1]);
+    check_files({a.scene, a.rays}, {a.hits});
+    const Mesh mesh = load_scene(a.scene);
+    const std::vector<Ray> rays = read_rays(a.rays);
     const Bvh bvh = build_tree(mesh, t);
-    std::ofstream out(a.pos[2], std::ios::binary);
-    if (!out) throw std::runtime_error("cannot write " + a.pos[2]);
-    const bool any = a.has("--any-hit");
+    std::ofstream out(a.hits, std::ios::binary);
+    if (!out) throw std::runtime_error("cannot write " + a.hits);
+    const bool any = a.any_hit;
     std::vector<Hit> hits(rays.size());
     std::vector<std::uint8_t> occl(rays.size());
     if (device == "cl") {
@@ -326,19 +323,39 @@ int cmd_trace(int argc, char** argv) {
         }
     }
     out << buf;
-    if (!out) throw std::runtime_error("error writing " + a.pos[2]);
+    if (!out) throw std::runtime_error("error writing " + a.hits);
     return 0;
 }
 
-int cmd_check(int argc, char** argv) {
-    Args a(argc, argv, 2, with_tree_flags({"--test", "--rays", "--seed"}), {});
-    if (a.pos.size() != 1) throw UsageError("check takes one SCENE.obj");
-    const BuildOptions t = tree_options(a);
-    const TestKind tk = test_kind(a);
-    const auto n = a.count<std::size_t>("--rays", 2000, 1, kMaxCheckRays);
-    const auto seed = a.count<std::uint64_t>("--seed", 1, 0, std::numeric_limits<std::uint64_t>::max());
-    check_files({a.pos[0]}, {});
-    const Mesh mesh = load_scene(a.pos[0]);
+struct CheckArgs {
+    std::string scene, test = "watertight";
+    std::size_t rays = 2000;
+    std::uint64_t seed = 1;
+    TreeArgs tree;
+};
+
+CLI::App* add_check(CLI::App& app, CheckArgs& a) {
+    CLI::App* c = app.add_subcommand("check", "traversal of the built tree against brute force on random rays; "
+                                              "exits 1 if they disagree");
+    c->add_option("SCENE.obj", a.scene, "the scene (OBJ)")->required()->type_name("");
+    c->add_option("--rays", a.rays, "random rays, 1..1000000 (default 2000)")
+        ->type_name("N")
+        ->transform(count_in(1, kMaxCheckRays));
+    c->add_option("--seed", a.seed, "random seed (default 1)")
+        ->type_name("S")
+        ->transform(count_in(0, std::numeric_limits<std::uint64_t>::max()));
+    add_tree_options(*c, a.tree);
+    add_test_option(*c, a.test);
+    return c;
+}
+
+int cmd_check(const CheckArgs& a) {
+    const BuildOptions t = tree_options(a.tree);
+    const TestKind tk = test_kind(a.test);
+    const std::size_t n = a.rays;
+    const std::uint64_t seed = a.seed;
+    check_files({a.scene}, {});
+    const Mesh mesh = load_scene(a.scene);
     const Bvh bvh = build_tree(mesh, t);
     const PrimitiveRefs refs = primitive_refs(mesh);
     if (std::string err = validate(bvh, refs.boxes); !err.empty()) throw std::runtime_error("invalid BVH: " + err);
@@ -393,83 +410,161 @@ int cmd_check(int argc, char** argv) {
     return disagree == 0 ? 0 : 1;
 }
 
-int cmd_animate_test(int argc, char** argv) {
-    Args a(argc, argv, 2, {"--frames"}, {});
-    if (a.pos.size() != 1) throw UsageError("animate-test takes one SCENE.obj");
-    const int frames = a.count<int>("--frames", 10, 1, kMaxAnimateTestFrames);
+struct AnimateTestArgs {
+    std::string scene;
+    int frames = 10;
+};
+
+CLI::App* add_animate_test(CLI::App& app, AnimateTestArgs& a) {
+    CLI::App* c = app.add_subcommand("animate-test", "a \"wave\" vertex hook moves a dynamic copy each frame: "
+                                                     "refit, TLAS, trace, on the device and the CPU");
+    c->add_option("SCENE.obj", a.scene, "the scene (OBJ)")->required()->type_name("");
+    c->add_option("--frames", a.frames, "frames, 1..1000 (default 10)")
+        ->type_name("N")
+        ->transform(count_in(1, kMaxAnimateTestFrames));
+    return c;
+}
+
+int cmd_animate_test(const AnimateTestArgs& a) {
 #if RAYKIT_CLI_HAVE_CL
-    check_files({a.pos[0]}, {});
-    return raykit_cli_animate_test(load_scene(a.pos[0]), frames);
+    check_files({a.scene}, {});
+    return raykit_cli_animate_test(load_scene(a.scene), a.frames);
 #else
-    throw std::runtime_error("this raykit was built without OpenCL (install ocl-icd-opencl-dev, opencl-clhpp-headers and pocl-opencl-icd, then rebuild)");
+    (void)a;
+    throw std::runtime_error(kNoOpenCL);
 #endif
 }
 
-int cmd_generate(int argc, char** argv) {
-    Args a(argc, argv, 2, {"--tris", "--seed"}, {});
-    if (a.pos.size() != 2) throw UsageError("generate takes KIND OUT.obj");
-    const auto tris = a.count<std::size_t>("--tris", 100000, 1, kMaxGenerateTris);
-    const auto seed = a.count<std::uint64_t>("--seed", 1, 0, std::numeric_limits<std::uint64_t>::max());
-    const std::string& kind = a.pos[0];
-    if (kind != "torus" && kind != "icosphere" && kind != "soup")
-        throw UsageError("unknown mesh kind '" + kind + "' (known: torus, icosphere, soup)");
-    check_files({}, {a.pos[1]});
+struct GenerateArgs {
+    std::string kind, out;
+    std::size_t tris = 100000;
+    std::uint64_t seed = 1;
+};
+
+CLI::App* add_generate(CLI::App& app, GenerateArgs& a) {
+    CLI::App* c = app.add_subcommand("generate", "writes a generated mesh as OBJ");
+    c->add_option("KIND", a.kind, "torus (bumpy), icosphere or soup (random triangles)")
+        ->required()
+        ->type_name("")
+        ->check(CLI::IsMember({"torus", "icosphere", "soup"}));
+    c->add_option("OUT.obj", a.out, "the OBJ to write")->required()->type_name("");
+    c->add_option("--tris", a.tris,
+                  "triangles, 1..1000000 (default 100000): about N for the torus, exactly N for the soup, the "
+                  "largest icosphere level (20 x 4^k) within N")
+        ->type_name("N")
+        ->transform(count_in(1, kMaxGenerateTris));
+    c->add_option("--seed", a.seed, "soup: random seed (default 1)")
+        ->type_name("S")
+        ->transform(count_in(0, std::numeric_limits<std::uint64_t>::max()));
+    return c;
+}
+
+int cmd_generate(const GenerateArgs& a) {
+    check_files({}, {a.out});
     Mesh m;
-    if (kind == "torus") m = make_bumpy_torus(tris);
-    else if (kind == "icosphere") m = make_icosphere(icosphere_level_for(tris));
-    else m = make_random_soup(tris, seed);
-    save_obj(m, a.pos[1]);
-    std::printf("wrote %s: %zu triangles, %zu vertices\n", a.pos[1].c_str(), m.triangle_count(), m.vertex_count());
+    std::string note;
+    if (a.kind == "torus") {
+        m = make_bumpy_torus(a.tris);
+        if (m.triangle_count() != a.tris) note = " (the nearest torus grid to --tris " + std::to_string(a.tris) + ")";
+    } else if (a.kind == "icosphere") {
+        const unsigned level = icosphere_level_for(a.tris);
+        m = make_icosphere(level);
+        if (m.triangle_count() != a.tris)
+            note = " (icosphere level " + std::to_string(level) + ", the largest within --tris " +
+                   std::to_string(a.tris) + "; levels have 20 x 4^k triangles, the next " +
+                   std::to_string(m.triangle_count() * 4) + ")";
+    } else {
+        m = make_random_soup(a.tris, a.seed);
+    }
+    save_obj(m, a.out);
+    std::printf("wrote %s: %zu triangles%s, %zu vertices\n", a.out.c_str(), m.triangle_count(), note.c_str(),
+                m.vertex_count());
     return 0;
+}
+
+/// "usage: raykit CMD POSITIONALS [OPTIONS]" for `cmd` (the whole CLI when null), and where
+/// the full help is.
+std::string short_usage(const CLI::App* cmd) {
+    if (!cmd) {
+        return "usage: raykit COMMAND [ARGS] [OPTIONS]  (commands: info, trace, check, generate, skin, animate, "
+               "render, animate-test)\nrun 'raykit --help' for the commands, 'raykit COMMAND --help' for one's "
+               "arguments and options\n";
+    }
+    std::string u = "usage: raykit " + cmd->get_name();
+    for (const CLI::Option* o : cmd->get_options([](const CLI::Option* o) { return o->get_positional(); }))
+        u += o->get_required() ? " " + o->get_name() : " [" + o->get_name() + "]";
+    return u + " [OPTIONS]\nrun 'raykit " + cmd->get_name() + " --help' for every option\n";
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-    if (argc < 2) {
-        std::fputs(kUsage, stderr);
-        std::fputs("raykit: error: no command given\n", stderr);
-        return 2;
-    }
-    const std::string cmd = argv[1];
+    CLI::App app{"raykit: the command line of the raykit ray-tracing library", "raykit"};
+    app.formatter(std::make_shared<raykit_cli::Formatter>());
+    app.require_subcommand(1);
+    InfoArgs info;
+    TraceArgs trace;
+    CheckArgs check;
+    GenerateArgs generate;
+    AnimateTestArgs animate_test;
+    raykit_cli::SkinArgs skin;
+    raykit_cli::AnimateArgs animate;
+    raykit_cli::RenderArgs render;
+    CLI::App* c_info = add_info(app, info);
+    CLI::App* c_trace = add_trace(app, trace);
+    CLI::App* c_check = add_check(app, check);
+    CLI::App* c_generate = add_generate(app, generate);
+    CLI::App* c_skin = app.add_subcommand("skin", "prints the skinned position of every triangle corner of an SMD "
+                                                  "model, one \"x y z\" line each, triangles in file order");
+    raykit_cli::add_skin_options(*c_skin, skin);
+    CLI::App* c_animate = app.add_subcommand("animate", "renders a skinned SMD character frame by frame, alone or "
+                                                        "inside a static OBJ scene, with per-frame timings");
+    raykit_cli::add_animate_options(*c_animate, animate);
+    CLI::App* c_render = app.add_subcommand("render", "renders a scene to PNG (or PFM) on the CPU or the OpenCL "
+                                                      "device");
+    raykit_cli::add_render_options(*c_render, render);
+    CLI::App* c_animate_test = add_animate_test(app, animate_test);
+    app.footer("Run 'raykit COMMAND --help' for a command's arguments and options. Bad arguments exit with 2, "
+               "any other error with 1 and a one-line reason on stderr.");
+
+    // the command named on the command line, for the usage line of a usage error
+    const CLI::App* named = nullptr;
+    const std::string cmd = argc > 1 ? argv[1] : "";
+    for (const CLI::App* c : app.get_subcommands([](const CLI::App*) { return true; }))
+        if (c->get_name() == cmd) named = c;
     try {
-        if (cmd == "info") return cmd_info(argc, argv);
-        if (cmd == "trace") return cmd_trace(argc, argv);
-        if (cmd == "check") return cmd_check(argc, argv);
-        if (cmd == "generate") return cmd_generate(argc, argv);
-        if (cmd == "animate-test") return cmd_animate_test(argc, argv);
-        if (cmd == "render") {
-            try {
-                return raykit_cli_render(argc, argv, 2);
-            } catch (const RaykitCliRenderUsageError& e) {
-                std::fputs(raykit_cli_render_usage(), stderr);
-                std::fprintf(stderr, "raykit: error: %s\n", e.what());
-                return 2;
-            }
-        }
-        if (cmd == "animate") {
-            try {
-                return raykit_cli_animate(argc, argv, 2);
-            } catch (const RaykitCliAnimateUsageError& e) {
-                std::fputs(raykit_cli_animate_usage(), stderr);
-                std::fprintf(stderr, "raykit: error: %s\n", e.what());
-                return 2;
-            }
-        }
-        if (cmd == "skin") {
-            try {
-                return raykit_cli_skin(argc, argv, 2);
-            } catch (const raykit_cli::SkinUsageError& e) {
-                throw UsageError(e.what());
-            }
-        }
-        if (cmd == "--help" || cmd == "-h" || cmd == "help") {
-            std::fputs(kUsage, stdout);
+        if (argc < 2) throw UsageError("no command given");
+        if (cmd == "help") {
+            std::fputs(app.help().c_str(), stdout);
             return 0;
         }
-        throw UsageError("unknown command '" + cmd + "'");
+        if (!named && cmd.rfind("-", 0) != 0) throw UsageError("unknown command '" + cmd + "'");
+        try {
+            app.parse(argc, argv);
+        } catch (const CLI::CallForHelp& e) {
+            return app.exit(e);  // the help of the command asked about, on stdout
+        } catch (const CLI::CallForAllHelp& e) {
+            return app.exit(e);
+        } catch (const CLI::ParseError& e) {
+            throw UsageError(e.what());
+        }
+        if (*c_info) return cmd_info(info);
+        if (*c_trace) return cmd_trace(trace);
+        if (*c_check) return cmd_check(check);
+        if (*c_generate) return cmd_generate(generate);
+        if (*c_animate_test) return cmd_animate_test(animate_test);
+        if (*c_render) return raykit_cli::run_render(render);
+        if (*c_animate) {
+            raykit_cli::finish_animate_args(animate);
+            return raykit_cli::run_animate(animate);
+        }
+        if (*c_skin) {
+            raykit_cli::finish_skin_args(*c_skin, skin);
+            return raykit_cli::run_skin(skin);
+        }
+        throw UsageError("no command given");
     } catch (const UsageError& e) {
-        std::fputs(kUsage, stderr);
+        std::fputs(short_usage(named).c_str(), stderr);
         std::fprintf(stderr, "raykit: error: %s\n", e.what());
         return 2;
     } catch (const std::bad_alloc&) {

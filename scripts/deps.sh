@@ -10,6 +10,7 @@ pkgs=(
   opencl-c-headers opencl-clhpp-headers ocl-icd-opencl-dev  # OpenCL device path
   pocl-opencl-icd                 # the default OpenCL device: PoCL on the CPU
   libgtest-dev libbenchmark-dev   # tests, benchmarks
+  libcli11-dev                    # the raykit command line's argument parser (header-only; the CLI only)
   libtinyobjloader-dev            # test oracle for the OBJ loader
   assimp-testmodels               # real OBJ/SMD files for the loader tests
   libembree-dev                   # benchmark peer

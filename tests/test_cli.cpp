@@ -7,7 +7,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
+#include <set>
 #include <sstream>
 #include <string>
 
@@ -73,15 +75,15 @@ TEST(Cli, UsageErrorsExitWithTwo) {
     expect_clean_error(run(""), 2, "no command");
     expect_clean_error(run("frobnicate"), 2, "unknown command");
     expect_clean_error(run("info"), 2, "info takes one");
-    expect_clean_error(run("info a.obj --nope"), 2, "unknown option --nope");
-    expect_clean_error(run("info a.obj --leaf"), 2, "--leaf needs a value");
-    expect_clean_error(run("info a.obj --leaf x"), 2, "--leaf expects a number");
-    expect_clean_error(run("info a.obj --builder magic"), 2, "unknown builder");
-    expect_clean_error(run("info a.obj --leaf-block 3"), 2, "--leaf-block must be 1, 2, 4, 8 or 16");
-    expect_clean_error(run("info a.obj --builder sortaxis --pairing best"), 2, "unknown pairing");
-    expect_clean_error(run("info a.obj --builder ploc --optimize maybe"), 2, "--optimize takes on or off");
-    expect_clean_error(run("trace a.obj r.txt"), 2, "trace takes");
-    expect_clean_error(run("trace a.obj r.txt h.txt --test fancy"), 2, "unknown --test");
+    expect_clean_error(run("info a.obj --nope"), 2, "not expected: --nope");
+    expect_clean_error(run("info a.obj --leaf-size"), 2, "--leaf-size: 1 required N missing");
+    expect_clean_error(run("info a.obj --leaf-size x"), 2, "--leaf-size: expects a number");
+    expect_clean_error(run("info a.obj --builder magic"), 2, "--builder: magic not in {sah,pairwise,sortaxis,ploc}");
+    expect_clean_error(run("info a.obj --leaf-block 3"), 2, "--leaf-block: 3 not in {1,2,4,8,16}");
+    expect_clean_error(run("info a.obj --builder sortaxis --pairing best"), 2, "--pairing: best not in");
+    expect_clean_error(run("info a.obj --builder ploc --optimize maybe"), 2, "--optimize: maybe not in {on,off}");
+    expect_clean_error(run("trace a.obj r.txt"), 2, "HITS.txt is required");
+    expect_clean_error(run("trace a.obj r.txt h.txt --test fancy"), 2, "--test: fancy not in {watertight,mt,thesis}");
     EXPECT_EQ(run("--help").code, 0);
 }
 
@@ -158,7 +160,7 @@ TEST(Cli, TraceMatchesBruteForce) {
     EXPECT_GT(hitcount, 500u);
     // a tree built for 4-triangle blocks (another tree, same test): the same HITS, byte for byte
     const fs::path hits_blk = tmpdir() / "hits2_blk.txt";
-    r = run("trace " + scene.string() + " " + rays.string() + " " + hits_blk.string() + " --leaf-block 4 --leaf 12");
+    r = run("trace " + scene.string() + " " + rays.string() + " " + hits_blk.string() + " --leaf-block 4 --leaf-size 12");
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_EQ(slurp(hits_blk), slurp(hits));
 }
@@ -173,10 +175,10 @@ TEST(Cli, InfoJsonAndCheck) {
     r = run("check " + scene.string() + " --rays 500 --seed 3");
     EXPECT_EQ(r.code, 0) << r.out << r.err;
     EXPECT_NE(r.out.find("0 disagreements"), std::string::npos) << r.out;
-    r = run("info " + scene.string() + " --json --leaf-block 4 --leaf 12");
+    r = run("info " + scene.string() + " --json --leaf-block 4 --leaf-size 12");
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_NE(r.out.find("\"leaf_block\": 4"), std::string::npos) << r.out;
-    r = run("check " + scene.string() + " --rays 500 --seed 4 --leaf-block 4 --leaf 12 --builder ploc");
+    r = run("check " + scene.string() + " --rays 500 --seed 4 --leaf-block 4 --leaf-size 12 --builder ploc");
     EXPECT_EQ(r.code, 0) << r.out << r.err;
     // flags left out take the builder's own defaults (sortaxis: area, mutual, W 2; ploc: post-pass on)
     const auto sah_of = [&](const std::string& flags) {
@@ -243,17 +245,17 @@ TEST(CliInputs, TraceRefusesADirectoryAsRaysAndWritesNoHits) {
     fs::create_directories(dir);
     fs::remove(hits);
     const Result r = run("trace " + scene.string() + " " + dir.string() + " " + hits.string());
-    expect_clean_error(r, 1, dir.string() + ":0: is a directory");
+    expect_clean_error(r, 1, dir.string() + ": is a directory");
     EXPECT_FALSE(fs::exists(hits)) << "a HITS file was written";
 }
 
 TEST(CliInputs, DeviceFilesAreRefusedNotReadForever) {
     if (!fs::exists("/dev/zero")) GTEST_SKIP() << "no /dev/zero";
-    expect_clean_error(run("info /dev/zero"), 1, "/dev/zero:0: is not a regular file");
+    expect_clean_error(run("info /dev/zero"), 1, "/dev/zero: is not a regular file");
     const fs::path scene = tmpdir() / "in_sphere2.obj";
     save_obj(make_icosphere(1), scene);
     expect_clean_error(run("trace " + scene.string() + " /dev/zero " + (tmpdir() / "h.txt").string()), 1,
-                       "/dev/zero:0: is not a regular file");
+                       "/dev/zero: is not a regular file");
 }
 
 TEST(CliInputs, RaysUseTheObjNumberRule) {
@@ -418,7 +420,7 @@ TEST(CliBounds, ThreadCountsAboveTheLimitAreUsageErrors) {
     for (const std::string& cmd : {"info " + s, "check " + s + " --rays 10", "trace " + s + " " + rays.string() + " " +
                                   hits.string(), "render " + s + " " + png + " --width 8 --height 8 --quiet"})
         for (const char* t : {"4294967295", "2147483648", "1025", "-1", "99999999999999999999", "1e400", "2e3"})
-            expect_one_error_line(run_bounded(cmd + " --threads " + t), 2, "--threads must be in 0..1024",
+            expect_one_error_line(run_bounded(cmd + " --threads " + t), 2, "--threads: must be in 0..1024",
                                   cmd + " --threads " + t);
     EXPECT_EQ(run_bounded("info " + s + " --threads 1024").code, 0);
     EXPECT_EQ(run_bounded("render " + s + " " + png + " --width 8 --height 8 --quiet --threads 1024").code, 0);
@@ -430,7 +432,7 @@ TEST(CliBounds, GenerateRejectsTriangleCountsItCannotMake) {
         for (const char* n : {"0", "18446744073709551615", "4294967296", "1000001", "-3"}) {
             fs::remove(out);
             const std::string cmd = std::string("generate ") + kind + " " + out.string() + " --tris " + n;
-            expect_one_error_line(run_bounded(cmd), 2, "--tris must be in 1..1000000", cmd);
+            expect_one_error_line(run_bounded(cmd), 2, "--tris: must be in 1..1000000", cmd);
             EXPECT_FALSE(fs::exists(out)) << cmd;
         }
     expect_one_error_line(run_bounded("generate soup " + out.string() + " --seed -1"), 2, "--seed", "seed -1");
@@ -446,12 +448,12 @@ TEST(CliBounds, RenderFlagsOutOfRangeAreUsageErrors) {
     const std::string base = "render " + bounds_scene().string() + " " + (tmpdir() / "bounds_flags.png").string() +
                              " --width 8 --height 8 --quiet ";
     const std::pair<const char*, const char*> bad[] = {
-        {"--ao-samples 4000000000", "--ao-samples must be in 1..4096"},
-        {"--ao-samples 4097", "--ao-samples must be in 1..4096"},
-        {"--ao-samples 0", "--ao-samples must be in 1..4096"},
-        {"--ao-samples -1", "--ao-samples must be in 1..4096"},
-        {"--ao-radius -1", "--ao-radius must be a finite number > 0"},
-        {"--ao-radius 0", "--ao-radius must be a finite number > 0"},
+        {"--ao-samples 4000000000", "--ao-samples: must be in 1..4096"},
+        {"--ao-samples 4097", "--ao-samples: must be in 1..4096"},
+        {"--ao-samples 0", "--ao-samples: must be in 1..4096"},
+        {"--ao-samples -1", "--ao-samples: must be in 1..4096"},
+        {"--ao-radius -1", "--ao-radius: must be a finite number > 0"},
+        {"--ao-radius 0", "--ao-radius: must be a finite number > 0"},
         {"--ao-radius nan", "--ao-radius"},
         {"--ao-radius inf", "--ao-radius"},
         {"--light 0 5 0 -1 1 1", "--light colour must be finite and >= 0"},
@@ -460,20 +462,20 @@ TEST(CliBounds, RenderFlagsOutOfRangeAreUsageErrors) {
         {"--background 0 0 -1", "--background colour must be finite and >= 0"},
         {"--sun 0 0 0 1 1 1", "--sun direction"},
         {"--sun 1e30 1e30 1e30 1 1 1", "--sun direction"},
-        {"--fov 0", "--fov must be in (0, 180)"},
-        {"--fov 180", "--fov must be in (0, 180)"},
+        {"--fov 0", "--fov: must be in (0, 180)"},
+        {"--fov 180", "--fov: must be in (0, 180)"},
         {"--camera 1e20 0 0 0 0 0", "--camera position must lie within"},
         {"--camera 0 0 5 0 -5e9 0", "--camera position must lie within"},
         {"--light 0 0 1e10 1 1 1", "--light position must lie within"},
         {"--fov nan", "--fov"},
-        {"--width 0", "--width must be in 1..65536"},
-        {"--height 65537", "--height must be in 1..65536"},
-        {"--width 99999999999", "--width must be in 1..65536"},
-        {"--spp 0", "--spp must be in 1..65536"},
-        {"--spp 65537", "--spp must be in 1..65536"},
-        {"--max-depth 1001", "--max-depth must be in 0..1000"},
-        {"--max-depth 18446744073709551616", "--max-depth must be in 0..1000"},
-        {"--leaf-size 0", "--leaf-size must be in 1..4294967295"},
+        {"--width 0", "--width: must be in 1..65536"},
+        {"--height 65537", "--height: must be in 1..65536"},
+        {"--width 99999999999", "--width: must be in 1..65536"},
+        {"--spp 0", "--spp: must be in 1..65536"},
+        {"--spp 65537", "--spp: must be in 1..65536"},
+        {"--max-depth 1001", "--max-depth: must be in 0..1000"},
+        {"--max-depth 18446744073709551616", "--max-depth: must be in 0..1000"},
+        {"--leaf-size 0", "--leaf-size: must be in 1..4294967295"},
         {"--seed -1", "--seed"},
         {"--camera 0 0 5 0 0 5", "--camera"},
         {"--up 0 0 0", "--up"},
@@ -484,10 +486,11 @@ TEST(CliBounds, RenderFlagsOutOfRangeAreUsageErrors) {
                            "--max-depth 0", "--max-depth 1000", "--fov 179", "--light 0 5 0 0 0 0",
                            "--seed 18446744073709551615", "--spp 2"})
         EXPECT_EQ(run_bounded(base + ok).code, 0) << ok;
-    // the caps are in the usage text
-    const Result u = run_bounded("render");
-    EXPECT_NE(u.err.find("1..4096"), std::string::npos) << u.err;
-    EXPECT_NE(u.err.find("16777216 pixels"), std::string::npos) << u.err;
+    // the caps are in the help
+    const Result u = run_bounded("render --help");
+    EXPECT_EQ(u.code, 0) << u.err;
+    EXPECT_NE(u.out.find("1..4096"), std::string::npos) << u.out;
+    EXPECT_NE(u.out.find("16777216 pixels"), std::string::npos) << u.out;
 }
 
 TEST(CliBounds, ImagesRaysAndFramesHaveDocumentedLimits) {
@@ -497,21 +500,22 @@ TEST(CliBounds, ImagesRaysAndFramesHaveDocumentedLimits) {
                           "at most 16777216 pixels", "65536 x 65536");
     expect_one_error_line(run_bounded("render " + s + " " + png + " --width 4097 --height 4096"), 2,
                           "at most 16777216 pixels", "4097 x 4096");
-    expect_one_error_line(run_bounded("check " + s + " --rays 1000000000000"), 2, "--rays must be in 1..1000000",
+    expect_one_error_line(run_bounded("check " + s + " --rays 1000000000000"), 2, "--rays: must be in 1..1000000",
                           "check --rays 1e12");
-    expect_one_error_line(run_bounded("check " + s + " --rays 0"), 2, "--rays must be in 1..1000000", "--rays 0");
+    expect_one_error_line(run_bounded("check " + s + " --rays 0"), 2, "--rays: must be in 1..1000000", "--rays 0");
     expect_one_error_line(run_bounded("animate-test " + s + " --frames 1000000000"), 2,
-                          "--frames must be in 1..1000", "animate-test --frames 1e9");
+                          "--frames: must be in 1..1000", "animate-test --frames 1e9");
     expect_one_error_line(run_bounded("info " + s + " --builder sortaxis --window 4097"), 2,
-                          "--window must be in 1..4096", "--window 4097");
-    expect_one_error_line(run_bounded("info " + s + " --leaf 0"), 2, "--leaf must be in 1..4294967295", "--leaf 0");
-    const Result h = run_bounded("--help");
+                          "--window: must be in 1..4096", "--window 4097");
+    expect_one_error_line(run_bounded("info " + s + " --leaf-size 0"), 2, "--leaf-size: must be in 1..4294967295",
+                          "--leaf-size 0");
+    const Result h = run_bounded("check --help");
     EXPECT_NE(h.out.find("1..1000000 (default 2000)"), std::string::npos) << h.out;
 }
 
 TEST(CliBounds, ScenesThatAreNotRegularFilesAreRefused) {
     for (const std::string& bad : {std::string("/dev/zero"), tmpdir().string()}) {
-        const std::string why = bad == "/dev/zero" ? ":0: is not a regular file" : ":0: is a directory";
+        const std::string why = bad == "/dev/zero" ? ": is not a regular file" : ": is a directory";
         expect_one_error_line(run_bounded("info " + bad), 1, bad + why, "info " + bad);
         expect_one_error_line(run_bounded("render " + bad + " " + (tmpdir() / "x.png").string()), 1, bad + why,
                               "render " + bad);
@@ -686,4 +690,259 @@ TEST(CliAnimate, OutputPatternNamesEveryFrame) {
     ASSERT_EQ(r.code, 0) << r.err;
     for (const char* f : {"f_00.png", "f_01.png", "f_02.png"}) EXPECT_TRUE(fs::exists(dir / f)) << f;
     EXPECT_FALSE(fs::exists(dir / "f_03.png"));
+}
+
+// ------------------------------------------------------------------ issue 15: one parser, one set of names
+
+namespace {
+
+/// The flags ("--name") a command's --help lists, without --help itself.
+std::set<std::string> help_flags(const std::string& command) {
+    const Result r = run(command + " --help");
+    EXPECT_EQ(r.code, 0) << command << ": " << r.err;
+    std::set<std::string> flags;
+    std::istringstream in(r.out);
+    for (std::string line; std::getline(in, line);) {
+        const auto at = line.find_first_not_of(' ');
+        if (at == std::string::npos || at == 0 || line[at] != '-') continue;  // option lines are indented
+        std::string names = line.substr(at, line.find(' ', at) - at);     // "-h,--help", "--width"
+        std::istringstream parts(names);
+        for (std::string n; std::getline(parts, n, ',');)
+            if (n.rfind("--", 0) == 0 && n != "--help") flags.insert(n);
+    }
+    return flags;
+}
+
+/// The commands `raykit --help` lists.
+std::set<std::string> help_commands() {
+    const Result r = run("--help");
+    EXPECT_EQ(r.code, 0) << r.err;
+    std::set<std::string> commands;
+    std::istringstream in(r.out.substr(std::min(r.out.size(), r.out.find("Subcommands:"))));
+    std::string line;
+    std::getline(in, line);  // "Subcommands:"
+    while (std::getline(in, line) && line.rfind("  ", 0) == 0) {
+        std::istringstream w(line);
+        std::string name;
+        w >> name;
+        commands.insert(name);
+    }
+    return commands;
+}
+
+fs::path readme_path() { return fs::path(RAYKIT_TEST_DATA_DIR) / ".." / ".." / "README.md"; }
+
+/// The lines of README.md's fenced blocks: {in the "## Command line" synopsis?, line}.
+std::vector<std::pair<bool, std::string>> readme_block_lines() {
+    std::istringstream in(slurp(readme_path()));
+    std::vector<std::pair<bool, std::string>> out;
+    bool in_block = false, in_section = false, synopsis_done = false, synopsis = false;
+    for (std::string line; std::getline(in, line);) {
+        if (line.rfind("## ", 0) == 0) in_section = line == "## Command line";
+        if (line.rfind("```", 0) == 0) {
+            if (!in_block) synopsis = in_section && !synopsis_done;
+            else if (synopsis) synopsis_done = true;
+            in_block = !in_block;
+            continue;
+        }
+        if (in_block) out.emplace_back(synopsis, line);
+    }
+    return out;
+}
+
+/// README's synopsis: the flags of each command ("raykit CMD ..." lines and their indented
+/// continuations; "# ..." comments left out).
+std::map<std::string, std::set<std::string>> readme_synopsis() {
+    std::map<std::string, std::set<std::string>> flags;
+    std::string command;
+    for (const auto& [synopsis, raw] : readme_block_lines()) {
+        if (!synopsis) continue;
+        const std::string line = raw.substr(0, raw.find('#'));
+        std::istringstream words(line);
+        std::string w;
+        if (line.rfind("raykit ", 0) == 0) {
+            words >> w >> command;  // "raykit", the command
+            flags[command];
+        } else if (line.empty() || line[0] != ' ') {
+            command.clear();
+            continue;
+        }
+        while (words >> w) {
+            // "[--width", "W]", "[--light", "--flag]..."
+            const auto at = w.find("--");
+            if (at == std::string::npos) continue;
+            std::string f = w.substr(at);
+            f = f.substr(0, f.find_first_of("]|. "));
+            if (!command.empty() && f.size() > 2) flags[command].insert(f);
+        }
+    }
+    return flags;
+}
+
+std::string joined(const std::set<std::string>& s) {
+    std::string out;
+    for (const std::string& x : s) out += x + " ";
+    return out;
+}
+
+}  // namespace
+
+TEST(CliHelp, EveryCommandHasHelp) {
+    const std::set<std::string> commands = help_commands();
+    EXPECT_EQ(commands, (std::set<std::string>{"info", "trace", "check", "generate", "skin", "animate", "render",
+                                               "animate-test"}));
+    for (const std::string& c : commands) {
+        const Result r = run(c + " --help");
+        EXPECT_EQ(r.code, 0) << c << ": " << r.err;
+        EXPECT_NE(r.out.find("Usage: raykit " + c + " [OPTIONS]"), std::string::npos) << r.out;
+        EXPECT_TRUE(r.err.empty()) << c << ": " << r.err;
+        EXPECT_FALSE(help_flags(c).empty()) << c;
+    }
+    // a usage error names the command's own usage and where its help is, then one error line
+    const Result bad = run("render --width");
+    expect_clean_error(bad, 2, "--width");
+    EXPECT_EQ(bad.err.rfind("usage: raykit render SCENE.obj OUT.png [OPTIONS]\nrun 'raykit render --help'", 0), 0u)
+        << bad.err;
+    EXPECT_EQ(run("render --help").out.find("usage:"), std::string::npos) << "help is not a usage error";
+}
+
+TEST(CliHelp, LeafSizeIsTheOneNameForTheLargestLeaf) {
+    for (const char* c : {"info", "trace", "check", "render"}) {
+        const std::set<std::string> f = help_flags(c);
+        EXPECT_EQ(f.count("--leaf-size"), 1u) << c << ": " << joined(f);
+        EXPECT_EQ(f.count("--leaf"), 0u) << c << ": the deprecated name is not in the help";
+    }
+    const fs::path scene = tmpdir() / "leaf_soup.obj";
+    save_obj(make_random_soup(500, 2), scene);
+    const Result now = run("info " + scene.string() + " --json --leaf-size 5");
+    ASSERT_EQ(now.code, 0) << now.err;
+    EXPECT_NE(now.out.find("\"max_leaf_size\": 5,"), std::string::npos) << now.out;
+    EXPECT_TRUE(now.err.empty()) << now.err;
+    // the old name still works, says so, and builds the same tree
+    const Result old = run("info " + scene.string() + " --json --leaf 5");
+    ASSERT_EQ(old.code, 0) << old.err;
+    EXPECT_NE(old.out.find("\"max_leaf_size\": 5,"), std::string::npos) << old.out;
+    EXPECT_NE(old.err.find("raykit: warning: --leaf is deprecated, use --leaf-size"), std::string::npos) << old.err;
+    const auto sah = [](const std::string& out) { return out.substr(out.find("\"sah_cost\"")); };
+    EXPECT_EQ(sah(old.out).substr(0, 30), sah(now.out).substr(0, 30));
+    // and keeps its range, named as given
+    expect_one_error_line(run("info " + scene.string() + " --leaf 0"), 2, "--leaf: must be in 1..4294967295",
+                          "--leaf 0");
+}
+
+TEST(CliReadme, SynopsisListsExactlyTheFlagsOfEachCommandsHelp) {
+    if (!fs::exists(readme_path())) GTEST_SKIP() << readme_path() << " not found";
+    const std::map<std::string, std::set<std::string>> readme = readme_synopsis();
+    std::set<std::string> readme_commands;
+    for (const auto& [c, f] : readme) readme_commands.insert(c);
+    EXPECT_EQ(readme_commands, help_commands()) << "README synopsis: " << joined(readme_commands);
+    for (const auto& [c, flags] : readme) {
+        const std::set<std::string> help = help_flags(c);
+        for (const std::string& f : flags) EXPECT_EQ(help.count(f), 1u) << "README lists " << c << " " << f;
+        for (const std::string& f : help) EXPECT_EQ(flags.count(f), 1u) << c << " --help lists " << f;
+    }
+    // the parse above sees what it should
+    ASSERT_TRUE(readme.count("render"));
+    EXPECT_EQ(readme.at("render").count("--background"), 1u);
+    EXPECT_EQ(readme.at("info").count("--device"), 1u);  // from the second "raykit info" line
+}
+
+TEST(CliReadme, EveryExampleCommandRuns) {
+#ifdef RAYKIT_SHARED_DATA_DIR
+    const fs::path shared = fs::path(RAYKIT_SHARED_DATA_DIR);
+#else
+    const fs::path shared;
+#endif
+    if (shared.empty() || !fs::exists(shared)) GTEST_SKIP() << "shared data (../shared/data) not found";
+    if (!fs::exists(readme_path())) GTEST_SKIP() << readme_path() << " not found";
+    std::vector<std::string> examples;
+    for (const auto& [synopsis, line] : readme_block_lines())
+        if (!synopsis && line.rfind("raykit ", 0) == 0) examples.push_back(line);
+    ASSERT_FALSE(examples.empty()) << "README has no raykit example";
+    // as from the repository root: ../shared/data beside it, out/ for outputs
+    const fs::path root = tmpdir() / "readme" / "repo";
+    fs::create_directories(root / "out");
+    std::error_code ec;
+    fs::create_directory_symlink(fs::absolute(shared).parent_path(), root.parent_path() / "shared", ec);
+    ASSERT_TRUE(fs::exists(root / ".." / "shared" / "data")) << ec.message();
+    for (const std::string& line : examples) {
+        EXPECT_EQ(line.find_first_of("[]<>"), std::string::npos) << "not a runnable command: " << line;
+        std::istringstream words(line);
+        std::vector<std::string> w;
+        for (std::string x; words >> x;) w.push_back(x);
+        // the files it writes: arguments under out/, a frame pattern for each frame
+        long first = 0, frames = 1;
+        for (std::size_t i = 0; i + 1 < w.size(); ++i) {
+            if (w[i] == "--first") first = std::stol(w[i + 1]);
+            if (w[i] == "--frames") frames = std::stol(w[i + 1]);
+        }
+        std::vector<fs::path> outputs;
+        for (const std::string& x : w) {
+            if (x.rfind("out/", 0) != 0) continue;
+            const auto pct = x.find('%');
+            if (pct == std::string::npos) {
+                outputs.push_back(root / x);
+                continue;
+            }
+            for (long k = first; k < first + frames; ++k) {
+                char num[32];
+                std::snprintf(num, sizeof num, "%0*ld", x[pct + 1] == '0' ? x[pct + 2] - '0' : 0, k);
+                outputs.push_back(root / (x.substr(0, pct) + num + x.substr(x.find('d', pct) + 1)));
+            }
+        }
+        ASSERT_FALSE(outputs.empty()) << "no output under out/: " << line;
+        for (const fs::path& o : outputs) fs::remove(o);
+        const Result r = run_sh("cd '" + root.string() + "' && \"$RAYKIT\" " + line.substr(7));
+        EXPECT_EQ(r.code, 0) << line << "\n" << r.err;
+        for (const fs::path& o : outputs) EXPECT_TRUE(fs::exists(o) && fs::file_size(o) > 0) << o << " from " << line;
+    }
+}
+
+// ------------------------------------------------------------------ issue 15: small items
+
+TEST(CliIssue15, GenerateSaysWhichIcosphereItMade) {
+    const fs::path out = tmpdir() / "ico15.obj";
+    const Result r = run("generate icosphere " + out.string() + " --tris 5000");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(load_obj(out).triangle_count(), 1280u);
+    EXPECT_NE(r.out.find("1280 triangles (icosphere level 3, the largest within --tris 5000"), std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("the next 5120"), std::string::npos) << r.out;
+    const Result exact = run("generate icosphere " + out.string() + " --tris 1280");
+    ASSERT_EQ(exact.code, 0) << exact.err;
+    EXPECT_EQ(exact.out.find('('), std::string::npos) << "nothing to explain: " << exact.out;
+}
+
+TEST(CliIssue15, SkinRefusesAnAnimationOfAnotherSkeleton) {
+    const fs::path dir = write_cube_animation(
+        "skin_other", "nodes\n0 \"hip\" -1\n1 \"knee\" 0\nend\nskeleton\ntime 0\n0 0 0 0 0 0 0\n1 0 0 1 0 0 0\nend\n");
+    const Result r = run("skin " + (dir / "cube.smd").string() + " " + (dir / "anim.smd").string() + " 0");
+    expect_one_error_line(r, 1, "anim.smd: none of its bones is in the skeleton of " + (dir / "cube.smd").string(),
+                          "skin with a foreign animation");
+    EXPECT_EQ(r.err.find("warning"), std::string::npos) << "one line, not a warning per bone: " << r.err;
+    EXPECT_TRUE(r.out.empty()) << "no bind pose printed";
+    // an animation of the cube's own bone still works
+    write(dir / "own.smd", "nodes\n0 \"root\" -1\nend\nskeleton\ntime 0\n0 0 0 1 0 0 0\nend\n");
+    const Result ok = run("skin " + (dir / "cube.smd").string() + " " + (dir / "own.smd").string() + " 0");
+    ASSERT_EQ(ok.code, 0) << ok.err;
+    EXPECT_EQ(std::count(ok.out.begin(), ok.out.end(), '\n'), 36);
+    // and animate refuses the foreign one the same way
+    expect_one_error_line(run("animate " + (dir / "cube.smd").string() + " " + (dir / "anim.smd").string() + " " +
+                              (dir / "f_%d.png").string() + " --width 8 --height 8"),
+                          1, "none of its bones is in the skeleton", "animate with a foreign animation");
+}
+
+TEST(CliIssue15, AMissingFileHasNoLineNumber) {
+    // "FILE: cannot open file: ...", not "FILE:0: ..." (no line to name)
+    const std::string png = (tmpdir() / "m.png").string();
+    const std::pair<std::string, std::string> cases[] = {
+        {"info /nonexistent_raykit/scene.obj", "/nonexistent_raykit/scene.obj"},
+        {"skin /nonexistent_raykit/ref.smd", "/nonexistent_raykit/ref.smd"},
+        {"render /nonexistent_raykit/scene.obj " + png, "/nonexistent_raykit/scene.obj"},
+    };
+    for (const auto& [cmd, file] : cases) {
+        const Result r = run(cmd);
+        expect_one_error_line(r, 1, file + ": cannot open file", cmd);
+        EXPECT_EQ(r.err.find(":0:"), std::string::npos) << r.err;
+    }
 }

@@ -34,7 +34,8 @@ void check_material(const raykit::Material& m) {
 void check_error(const raykit::ParseError& e) {
     check(!e.file().empty());  // fuzz.obj, or base_dir / NAME of the carried MTL
     // what() is a C string: a NUL inside a file name ends it early.
-    const std::string prefix = e.file() + ":" + std::to_string(e.line()) + ": ";
+    // "FILE:LINE: ", or "FILE: " for an error not tied to a line (line 0)
+    const std::string prefix = e.file() + (e.line() ? ":" + std::to_string(e.line()) : std::string()) + ": ";
     check(std::string(e.what()).rfind(prefix.substr(0, prefix.find('\0')), 0) == 0);
 }
 

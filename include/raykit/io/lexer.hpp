@@ -73,7 +73,7 @@ inline std::string obj_quote(std::string_view s) {
     return out;
 }
 
-/// Throws ParseError ("FILE:0: ...") unless `file` is an existing regular file within
+/// Throws ParseError ("FILE: ...", line 0) unless `file` is an existing regular file within
 /// kMaxTextFileBytes: what every reader checks before reading (a folder, /dev/zero or a pipe
 /// never ends or ends in bad_alloc otherwise). Returns its size.
 inline std::uintmax_t check_text_file(const std::filesystem::path& file) {

@@ -7,12 +7,12 @@
 
 namespace raykit {
 
-/// Thrown on malformed or unreadable input. what() is "FILE:LINE: message"
-/// (LINE is 0 when the problem is not tied to a line, e.g. an unreadable file).
+/// Thrown on malformed or unreadable input. what() is "FILE:LINE: message", or "FILE: message"
+/// when the problem is not tied to a line (e.g. an unreadable file; then line() is 0).
 class ParseError : public std::runtime_error {
 public:
     ParseError(std::string file, std::size_t line, const std::string& message)
-        : std::runtime_error(file + ":" + std::to_string(line) + ": " + message),
+        : std::runtime_error(file + (line ? ":" + std::to_string(line) : std::string()) + ": " + message),
           file_(std::move(file)),
           line_(line) {}
     const std::string& file() const noexcept { return file_; }

@@ -36,7 +36,7 @@
 //
 // Every function throws raykit::ParseError ("FILE:LINE: message") on malformed
 // or unreadable input; LINE is 1-based (an empty file's errors are at line 1),
-// 0 only when the file cannot be opened or read.
+// 0 only when the file cannot be opened or read (then what() is "FILE: message").
 //
 // Bounds: memory and time grow linearly with the input, except an animation's
 // key frames, which hold one pose per reference bone each: at most
