@@ -28,7 +28,7 @@ int main(int argc, char** argv) {
     const Camera cam = camera_looking_at(mesh.bounds(), 320, 240, vec3(0.2f, -0.5f, 1.0f));  // looking from +z, below
     const std::vector<Ray> rays = camera_rays(cam);
     std::vector<Hit> hits(rays.size());
-    parallel_for(rays.size(), 0, [&](std::size_t i) { hits[i] = intersect_closest(tree, rays[i]); });
+    intersect_closest(tree, rays, hits);  // the batch call: packets of neighbouring rays, on all cores
 
     // Distance along the ray is t·|dir|: camera directions are not normalised and raykit
     // measures t in units of the direction's length.

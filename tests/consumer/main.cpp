@@ -18,11 +18,11 @@ int main(int argc, char** argv) {
     const Hit one = intersect_closest(tree, ray);
     bool ok = one.valid() && one.prim == brute_force_closest(mesh, ray).prim;
 
-    // a batch: one camera ray per pixel, traced on all cores
+    // a batch: one camera ray per pixel, traced as packets on all cores
     Camera cam = frame_scene(mesh.bounds(), 64, 48);
     const std::vector<Ray> rays = camera_rays(cam);
     std::vector<Hit> hits(rays.size());
-    parallel_for(rays.size(), 0, [&](std::size_t i) { hits[i] = intersect_closest(tree, rays[i]); });
+    intersect_closest(tree, rays, hits);
     std::size_t hit_count = 0, wrong = 0;
     for (std::size_t i = 0; i < rays.size(); i += 7) {  // every 7th ray against brute force
         const Hit b = brute_force_closest(mesh, rays[i]);

@@ -26,6 +26,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cstddef>
 #include <cctype>
 #include <cstdlib>
 #include <map>
@@ -170,8 +171,8 @@ inline DeviceChoice choose_device(const std::vector<DeviceInfo>& devices, std::s
         // "P:D"
         const auto colon = s.find(':');
         if (colon != std::string::npos && colon > 0 && colon + 1 < s.size() &&
-            std::all_of(s.begin(), s.begin() + colon, detail::is_digit) &&
-            std::all_of(s.begin() + colon + 1, s.end(), detail::is_digit)) {
+            std::all_of(s.begin(), s.begin() + std::ptrdiff_t(colon), detail::is_digit) &&
+            std::all_of(s.begin() + std::ptrdiff_t(colon) + 1, s.end(), detail::is_digit)) {
             if (colon <= 6 && s.size() - colon <= 7) {  // longer numbers cannot be indices
                 const unsigned long p = std::stoul(s.substr(0, colon)), d = std::stoul(s.substr(colon + 1));
                 for (const DeviceInfo& di : devices)

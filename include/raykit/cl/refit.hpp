@@ -85,8 +85,8 @@ public:
             for (std::size_t i = 0; i < t.nodes.size(); ++i) {
                 const DeviceNode& n = t.nodes[i];
                 const auto g = static_cast<cl_uint>(t.node_offset + i);
-                if (levels.size() <= std::size_t(depth[i])) levels.resize(depth[i] + 1);
-                levels[depth[i]].push_back(cl_uint2{{g, t.object}});
+                if (levels.size() <= std::size_t(depth[i])) levels.resize(std::size_t(depth[i]) + 1);
+                levels[std::size_t(depth[i])].push_back(cl_uint2{{g, t.object}});
                 for (int c = 0; c < kDeviceWidth; ++c) {
                     if (n.count[c] != 0 || n.unused(c)) continue;
                     if (n.index[c] >= t.nodes.size() || n.index[c] <= i)
