@@ -60,7 +60,7 @@
 //   `map_Kd` name is an error (the OS would open the name cut at the NUL).
 // * All other keywords (`s`, `l`, `p`, `vp`, `curv`, `c`, ...) are ignored:
 //   lines and points make no triangles.
-// * A file that yields no triangle gets one warning ("NAME:0: no triangles"),
+// * A file that yields no triangle gets one warning ("NAME: no triangles"),
 //   which also says when NAME does not end in `.obj`: a binary file or an SMD
 //   given as a scene used to render a black image without a word.
 // * ObjOptions::read_material_library, when set, supplies the text of every
@@ -625,7 +625,7 @@ private:
             // rather than let a caller render a black image in silence.
             std::string ext = std::filesystem::path(name_).extension().string();
             for (char& c : ext) c = static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
-            std::string msg = name_ + ":0: no triangles (no face statement) in this file";
+            std::string msg = name_ + ": no triangles (no face statement) in this file";
             if (ext != ".obj") {
                 msg += "; its name does not end in .obj (" + (ext.empty() ? std::string("no extension") : "'" + ext + "'") +
                        "): is it an OBJ file?";
