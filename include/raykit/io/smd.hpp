@@ -3,11 +3,11 @@
 //
 // Interface
 // ---------
-//   Bone, BonePose, BoneWeight, VertexWeights: scene/skeleton_data.hpp (the
-//   format-independent skeleton and skin data this parser fills)
+//   Bone, BonePose, BoneWeight, VertexWeights, SmdSkeletonAnim (key frames
+//   and their frame numbers: frames, times, fps = 30, warnings; frame(f)):
+//   scene/skeleton_data.hpp (the format-independent skeleton, skin and
+//   animation data this parser fills)
 //   struct SmdModel      { bones, bind_pose, mesh, weights };
-//   struct SmdSkeletonAnim { frames, times, fps = 30, warnings;      // key frames + their frame numbers
-//                            frame_count(), key_of_frame(f), frame(f) };
 //
 //   SmdModel load_smd_reference(const std::filesystem::path& file);
 //   SmdModel parse_smd_reference(std::string_view text, const std::string& name_for_errors,
@@ -157,40 +157,6 @@ struct SmdModel {
     std::vector<BonePose> bind_pose;        ///< one per bone, the reference's first frame
     Mesh mesh;                               ///< warnings in mesh.warnings
     std::vector<VertexWeights> weights;      ///< one per mesh vertex
-};
-
-/// An animation SMD retargeted to a reference skeleton: key frames
-/// frames[k][bone] at frame numbers times[k] (see the header comment).
-struct SmdSkeletonAnim {
-    std::vector<std::vector<BonePose>> frames;  ///< key frames, one pose per reference bone
-    std::vector<std::uint32_t> times;           ///< frame number of each key; empty: key k is frame k
-    float fps = 30.0f;
-    std::vector<std::string> warnings;
-
-    std::size_t key_count() const noexcept { return frames.size(); }
-    /// Frames the animation spans: the last key's frame number + 1.
-    std::size_t frame_count() const noexcept {
-        if (times.empty() || frames.empty()) return frames.size();
-        return static_cast<std::size_t>(times.back()) + 1;
-    }
-    /// Index of the key that frame `f` shows: the last key at or before f.
-    /// Throws std::out_of_range for f >= frame_count(), std::invalid_argument
-    /// when times is neither empty nor one entry per key starting at 0.
-    std::size_t key_of_frame(std::size_t f) const {
-        if (f >= frame_count()) {
-            throw std::out_of_range("SmdSkeletonAnim: frame " + std::to_string(f) + " of " +
-                                    std::to_string(frame_count()));
-        }
-        if (times.empty()) return f;
-        if (times.size() != frames.size() || times.front() != 0) {
-            throw std::invalid_argument("SmdSkeletonAnim: times must be empty or one per key frame, starting at 0");
-        }
-        const auto it = std::upper_bound(times.begin(), times.end(), f,
-                                         [](std::size_t v, std::uint32_t t) { return v < t; });
-        return static_cast<std::size_t>(it - times.begin()) - 1;
-    }
-    /// The poses of frame f (one per reference bone).
-    const std::vector<BonePose>& frame(std::size_t f) const { return frames[key_of_frame(f)]; }
 };
 
 inline SmdModel load_smd_reference(const std::filesystem::path& file);
