@@ -36,7 +36,8 @@
 //
 // Every function throws raykit::ParseError ("FILE:LINE: message") on malformed
 // or unreadable input; LINE is 1-based (an empty file's errors are at line 1),
-// 0 only when the file cannot be opened or read (then what() is "FILE: message").
+// 0 only when the file cannot be opened or read or is UTF-16 of an odd byte
+// count (then what() is "FILE: message").
 //
 // Bounds: memory and time grow linearly with the input, except an animation's
 // key frames, which hold one pose per reference bone each: at most
@@ -45,9 +46,11 @@
 //
 // File format accepted
 // --------------------
-// * Lines end in LF or CRLF; a UTF-8 byte-order mark is skipped; blank lines
-//   and lines starting with `//`, `#` or `;` are ignored everywhere; tokens are
-//   separated by spaces/tabs.
+// * Byte-order marks as in OBJ (io/lexer.hpp's one rule): a UTF-8 BOM is
+//   skipped, UTF-16 text with a BOM is read as its UTF-8 conversion (an odd
+//   byte count is an error at line 0).
+// * Lines end in LF or CRLF; blank lines and lines starting with `//`, `#`
+//   or `;` are ignored everywhere; tokens are separated by spaces/tabs.
 // * Top level: `version 1` (optional; another version is an error), then the
 //   blocks `nodes`, `skeleton`, `triangles`, `vertexanimation`, each ended by a
 //   line `end`. `nodes` must come before `skeleton` and `triangles`; each block
@@ -264,15 +267,10 @@ inline std::pair<std::filesystem::path, bool> smd_resolve_texture(const std::fil
 
 namespace detail {
 
-/// Splits the text into trimmed lines (LF or CRLF), skipping nothing.
+/// Splits decoded text (obj_decode_text) into trimmed lines (LF or CRLF), skipping blank and comment lines.
 class SmdLineReader {
 public:
-    explicit SmdLineReader(std::string_view text) : text_(text) {
-        if (text_.size() >= 3 && static_cast<unsigned char>(text_[0]) == 0xEF &&
-            static_cast<unsigned char>(text_[1]) == 0xBB && static_cast<unsigned char>(text_[2]) == 0xBF) {
-            text_.remove_prefix(3);
-        }
-    }
+    explicit SmdLineReader(std::string_view text) : text_(text) {}
     /// Next non-blank, non-comment line; false at the end of the text.
     bool next(std::string_view& line, std::size_t& number) {
         while (pos_ < text_.size()) {
@@ -311,7 +309,8 @@ public:
     }
 
     void parse(std::string_view text) {
-        SmdLineReader reader(text);
+        std::string decoded;  // UTF-16 text converted; the reader's lines point into it
+        SmdLineReader reader(obj_decode_text(text, decoded, name_));
         std::string_view line;
         while (reader.next(line, line_)) {
             std::string_view rest = line;
