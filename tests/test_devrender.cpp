@@ -824,6 +824,43 @@ TEST(DeviceRender, InstancedMultiObjectSceneMatchesTheCpuRenderer) {
                  std::invalid_argument);
 }
 
+TEST(DeviceRender, MovedInstanceNeedsDeviceUpdateThenRendersTheNewPlacement) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    InstancedScene sc;
+    rcl::DeviceScene<> ds(dev, sc.rs.scene);
+    ds.update();
+    rcl::DeviceRenderer r(ds, sc.rs.materials, sc.rs.lights);
+    ShadeSettings s;
+    s.shader = ShaderKind::normals;
+    const Image before = r.render(sc.cam, s);
+    const std::vector<Ray> rays = {sc.cam.frame().ray(48, 36)};
+    // the CPU scene's own rule (update_top_level) does not refresh the device's copy of the instances
+    sc.rs.scene.set_transform(2, place({0.0f, 1.4f, 0.2f}, 20.0f, {0.3f, 1.0f, 0.2f}, vec3(1.3f, 1.1f, 0.9f)));
+    sc.rs.scene.update_top_level();
+    try {
+        (void)r.render(sc.cam, s);
+        ADD_FAILURE() << "rendered the placement of the last update() after set_transform";
+    } catch (const std::logic_error& e) {
+        EXPECT_NE(std::string(e.what()).find("update()"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW((void)ds.closest(rays), std::logic_error) << "traced a stale DeviceScene";
+    EXPECT_THROW((void)ds.any(rays), std::logic_error) << "traced a stale DeviceScene";
+    ds.update();
+    const Image after = r.render(sc.cam, s);
+    EXPECT_LT(compare(before, after).fraction_ok(), 0.95) << "the move is visible";
+    const Diff d = compare(cpu_render(sc.rs, sc.cam, s), after);
+    EXPECT_GE(d.fraction_ok(), 0.999) << d.bad << " of " << d.total << " differ, worst " << d.worst;
+    const Hit dh = ds.closest(rays)[0], ch = sc.rs.scene.intersect_closest(rays[0]);
+    EXPECT_EQ(dh.inst, ch.inst);
+    EXPECT_EQ(dh.t, ch.t);
+    // a second move, then update(): fresh again (the check is per move, not once)
+    sc.rs.scene.set_transform(1, place({-1.2f, 0.9f, 0.4f}, 35.0f, {0, 1, 0}, vec3(1.1f)));
+    EXPECT_THROW((void)r.render(sc.cam, s), std::logic_error);
+    ds.update();
+    sc.rs.scene.update_top_level();
+    EXPECT_GE(compare(cpu_render(sc.rs, sc.cam, s), r.render(sc.cam, s)).fraction_ok(), 0.999);
+}
+
 TEST(DeviceRender, DynamicSceneMovedAndRenderedOnTheDeviceMatchesTheCpu) {
     RAYKIT_REQUIRE_DEVICE(dev);
     Texture tex = checker(8, 8);

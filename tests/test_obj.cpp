@@ -23,6 +23,8 @@
 
 #include <sys/stat.h>
 
+#include "test_text.hpp"
+
 namespace fs = std::filesystem;
 using raykit::kNoMaterial;
 using raykit::Mesh;
@@ -382,14 +384,8 @@ TEST(ObjLexical, ByteOrderMarksAndUtf16) {
     EXPECT_EQ(bom.triangles.size(), 1u);
 
     // Encode as UTF-16 (ASCII plus U+00E9) in both byte orders.
-    std::u16string u16 = u"v 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\ng caf\u00e9\r\nf 1 2 3\r\n";
     for (bool big : {true, false}) {
-        std::string bytes = big ? "\xFE\xFF" : "\xFF\xFE";
-        for (char16_t c : u16) {
-            const char hi = static_cast<char>(c >> 8), lo = static_cast<char>(c & 0xFF);
-            bytes += big ? std::string{hi, lo} : std::string{lo, hi};
-        }
-        const Mesh m = parse(bytes);
+        const Mesh m = parse(raykit::test::utf16_with_bom("v 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\ng caf\xC3\xA9\r\nf 1 2 3\r\n", big));
         EXPECT_EQ(m.triangles.size(), 1u);
         ASSERT_EQ(m.groups.size(), 1u);
         EXPECT_EQ(m.groups[0].name, "caf\xC3\xA9");

@@ -16,6 +16,7 @@
 #include <sys/stat.h>
 
 #include "raykit/io/obj.hpp"
+#include "test_text.hpp"
 
 namespace fs = std::filesystem;
 using raykit::ParseError;
@@ -73,6 +74,31 @@ TEST(Rays, FieldsCommentsBlankLinesAndLineEndings) {
     EXPECT_EQ(rays[2].tmax, 8.0f);
     EXPECT_TRUE(parse("").empty());
     EXPECT_TRUE(parse("# only\n\n").empty());
+}
+
+TEST(Rays, ByteOrderMarksAndUtf16AsInObj) {
+    // io/lexer.hpp's one rule for every reader: a UTF-8 BOM is skipped, UTF-16 with a BOM converted
+    const std::string text = "# caf\xC3\xA9 \xF0\x9F\x98\x80\n0 0 -5 0 0 1 0 inf\r\n1.5 -2 3 .5 -.5 5 1e-3 100\n";
+    const std::vector<Ray> plain = parse(text);
+    ASSERT_EQ(plain.size(), 2u);
+    auto expect_plain = [&](const std::vector<Ray>& rays, const char* what) {
+        ASSERT_EQ(rays.size(), plain.size()) << what;
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            EXPECT_EQ(rays[i].org, plain[i].org) << what << " ray " << i;
+            EXPECT_EQ(rays[i].dir, plain[i].dir) << what << " ray " << i;
+            EXPECT_EQ(rays[i].tmin, plain[i].tmin) << what << " ray " << i;
+            EXPECT_EQ(rays[i].tmax, plain[i].tmax) << what << " ray " << i;
+        }
+    };
+    expect_plain(parse("\xEF\xBB\xBF" + text), "UTF-8 BOM");
+    for (bool big : {true, false}) {
+        const char* what = big ? "UTF-16BE" : "UTF-16LE";
+        expect_plain(parse(raykit::test::utf16_with_bom(text, big)), what);
+        SCOPED_TRACE(what);  // errors name the text's line
+        expect_error([&] { parse(raykit::test::utf16_with_bom(text + "0 0 -5 0 zero 1 0 inf\n", big)); }, "r.txt", 4,
+                     "malformed number 'zero' in 'dy'");
+    }
+    expect_error([] { parse(std::string("\xFE\xFF\x00", 3)); }, "r.txt", 0, "UTF-16");
 }
 
 TEST(Rays, OnlyTmaxMayBeInfinite) {

@@ -24,6 +24,7 @@
 
 #include "raykit/anim/skeleton.hpp"
 #include "raykit/anim/skinning.hpp"
+#include "test_text.hpp"
 
 namespace fs = std::filesystem;
 using raykit::BonePose;
@@ -448,6 +449,40 @@ TEST(SmdParse, CrlfBomCommentsBlankLinesAndNoFinalNewline) {
     std::string bad = text;
     bad.replace(bad.find("1 1 0 0 0 0 1 1 0"), 17, "1 1 0 0 0 0 1 1 x");
     expect_error([&] { parse_ref(bad); }, kName, 19, "malformed number 'x'");
+}
+
+TEST(SmdParse, ByteOrderMarksAndUtf16AsInObj) {
+    // io/lexer.hpp's one rule for every reader: a UTF-8 BOM is skipped, UTF-16 with a BOM converted
+    const std::string name = "caf\xC3\xA9 \xF0\x9F\x98\x80";  // U+00E9 and U+1F600 (a surrogate pair)
+    const std::vector<std::string> lines = with(kBase, 4, "1 \"" + name + "\" 0");
+    const std::string text = join_lines(lines);
+    const SmdModel plain = parse_ref(text);
+    auto expect_plain = [&](const SmdModel& m) {
+        ASSERT_EQ(m.bones.size(), 2u);
+        EXPECT_EQ(m.bones[1].name, name);
+        EXPECT_EQ(m.bind_pose[1].position, plain.bind_pose[1].position);
+        EXPECT_EQ(m.mesh.positions, plain.mesh.positions);
+        EXPECT_EQ(m.mesh.triangles.size(), plain.mesh.triangles.size());
+    };
+    {
+        SCOPED_TRACE("UTF-8 BOM");
+        expect_plain(parse_ref("\xEF\xBB\xBF" + text));
+    }
+    const std::string anim_text = join_lines(first_lines(with(lines, 9, "1 2 0 0 0 0 0"), 10));
+    for (bool big : {true, false}) {
+        SCOPED_TRACE(big ? "UTF-16BE" : "UTF-16LE");
+        expect_plain(parse_ref(raykit::test::utf16_with_bom(text, big)));
+        // an animation retargets by the decoded bone name
+        const SmdSkeletonAnim a =
+            raykit::parse_smd_animation(raykit::test::utf16_with_bom(anim_text, big), kName, plain.bones);
+        EXPECT_TRUE(a.warnings.empty());
+        ASSERT_EQ(a.key_count(), 1u);
+        EXPECT_EQ(a.frame(0)[1].position, vec3(2, 0, 0));
+        // errors name the text's line
+        expect_error([&] { parse_ref(raykit::test::utf16_with_bom(join_lines(with(lines, 14, "1 1 0 0 0 0 1 1 x")), big)); },
+                     kName, 14, "malformed number 'x'");
+    }
+    expect_error([] { parse_ref(std::string("\xFF\xFE\x76", 3)); }, kName, 0, "UTF-16");
 }
 
 TEST(SmdParse, VersionIsOptionalAndVertexAnimationIsSkipped) {

@@ -55,7 +55,7 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include "raykit/anim/skeleton.hpp"
-#include "raykit/io/smd.hpp"
+#include "raykit/scene/skeleton_data.hpp"
 
 namespace raykit {
 

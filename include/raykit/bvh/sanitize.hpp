@@ -4,8 +4,8 @@
 // A mesh may hold NaN or infinite vertices (a broken export, a skinning bug),
 // and an empty box has min > max. Sorting, Morton codes and nearest-neighbour
 // distances must never see those, or orders stop being orders and the builders
-// loop or crash. So every builder works with sanitized centroids (a non-finite
-// one sits at the centre of the finite ones, the same rule as BinnedSahBuilder)
+// loop or crash. So every builder (BinnedSahBuilder included) works with
+// sanitized centroids (a non-finite one sits at the centre of the finite ones)
 // and "working" boxes (a primitive's own box when it is finite and non-empty,
 // else the point box at its sanitized centroid). These are used for decisions
 // only: the output boxes are always the real ones.
@@ -49,8 +49,7 @@ inline AABB finite_point_bounds(std::span<const vec3> pts, unsigned threads, boo
 
 /// The centroids a builder works with: the caller's, or, when some are not
 /// finite (NaN triangles), a copy where those sit at the centre of the
-/// finite ones, so that sorting, Morton codes and distances never see a NaN
-/// (the same rule as BinnedSahBuilder).
+/// finite ones, so that binning, sorting, Morton codes and distances never see a NaN.
 struct SanitizedCenters {
     std::vector<vec3> copy;       ///< used only when an input centroid was not finite
     std::span<const vec3> view;   ///< the centroids to use
@@ -59,6 +58,7 @@ struct SanitizedCenters {
     std::size_t size() const noexcept { return view.size(); }
 };
 
+/// SanitizedCenters of `centers`: the same for any thread count (finite_point_bounds is exact).
 inline SanitizedCenters sanitize_centers(std::span<const vec3> centers, unsigned threads) {
     SanitizedCenters s;
     bool bad = false;

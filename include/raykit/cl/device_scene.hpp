@@ -40,7 +40,15 @@
 // same fma formulation), same traversal and tie rules.
 //
 // The Scene must outlive the DeviceScene and keep its objects (instances may
-// be added or moved between updates; objects may not be added). A
+// be added or moved between updates; objects may not be added). The device
+// holds its own copy of the instances and top level, which only update()
+// refreshes (Scene::update_top_level() does not): tracing, or rendering with
+// cl/render.hpp, after Scene::add_instance or set_transform without update()
+// throws std::logic_error, as the CPU Scene throws until update_top_level(),
+// instead of showing the instances where the last update() left them (it
+// used to). A throw, not an update on the renderer's behalf: update() runs
+// the hooks' vertex stage and takes the refit and top-level methods, the
+// caller's choices. A
 // DeviceScene is not thread-safe: use it from one thread at a time.
 #pragma once
 
@@ -129,11 +137,14 @@ public:
     /// Nodes of the top-level tree (0: nothing to trace).
     std::uint32_t top_count() const noexcept { return top_count_; }
 
-    /// Throws std::logic_error unless update() ran and no instance was added since.
+    /// Throws std::logic_error unless update() ran and no instance was added or moved since.
     void require_fresh() const {
         if (!fresh_) throw std::logic_error("raykit::cl::DeviceScene: call update() before tracing");
         if (scene_->instances().size() != instance_count_)
             throw std::logic_error("raykit::cl::DeviceScene: instances changed since update()");
+        if (scene_->instance_revision() != instance_revision_)
+            throw std::logic_error("raykit::cl::DeviceScene: an instance moved (Scene::set_transform) since "
+                                   "update(); call update() before tracing");
     }
 
 protected:
@@ -154,6 +165,7 @@ protected:
     Bvh top_;
     std::uint32_t top_count_ = 0;
     std::size_t instance_count_ = 0;
+    std::uint64_t instance_revision_ = 0;  ///< Scene::instance_revision() as of the last update()
     Buffer<Node> top_nodes_;
     Buffer<std::uint32_t> top_ids_;
     Buffer<InstanceRecord> instances_;
@@ -563,6 +575,7 @@ private:
         instances_.reserve(*dev_, recs.size());
         instances_.write(*dev_, recs);
         instance_count_ = insts.size();
+        instance_revision_ = scene_->instance_revision();
     }
 
     void prepare_trace(const Buffer<Ray>& rays, std::size_t n) {

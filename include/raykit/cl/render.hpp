@@ -7,6 +7,7 @@
 //                                                       // top level, moved vertices included;
 //                                                       // one MaterialTable per object
 //   per frame: move ds (set_hook, scene.set_transform), ds.update(), r.render(cam, set)
+//                                                       // (a move without ds.update(): render throws)
 //   raykit::cl::DeviceRenderer r(dev, rs.view());       // a ShadeScene: uploads it into a
 //                                                       // DeviceScene of its own
 //   RenderSettings set;  set.spp = 4;  set.shade.shader = ShaderKind::ao;
@@ -310,7 +311,8 @@ class DeviceRenderer {
 public:
     /// Renders `scene` as it stands after its last update(), with one material table per object
     /// of its Scene (in object order) and `lights`. The DeviceScene and its Scene must outlive
-    /// the renderer (they are read at each render: call scene.update() after moving it); the
+    /// the renderer (they are read at each render: call scene.update() after moving it; a
+    /// render after an instance was added or moved without it throws std::logic_error); the
     /// tables and lights are copied. The depth and ao defaults use the world boxes of the
     /// instances (set_bounds() to replace them). Throws std::invalid_argument when there is not
     /// one table per object.

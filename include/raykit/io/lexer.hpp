@@ -6,6 +6,10 @@
 // The RAYS reader had its own rule (std::from_chars alone), so `1e-46` and `1e39`
 // were "not a number" there but 0 and an overflow error in an OBJ file.
 //
+// One byte-order-mark rule for every reader (obj_decode_text): a UTF-8 BOM is
+// skipped, UTF-16 with a BOM is converted to UTF-8. SMD and RAYS used to skip a
+// UTF-8 BOM by hand, so a UTF-16 file that OBJ reads failed there at line 1.
+//
 // Bounds: read_text_file refuses what is not a regular file (a directory, a FIFO,
 // /dev/zero: reading /dev/zero used to end in std::bad_alloc) and files over
 // kMaxTextFileBytes; ObjLineReader refuses a logical line over kMaxLineBytes.

@@ -3,7 +3,10 @@
 // One ray per line: `ox oy oz dx dy dz tmin tmax`, eight numbers separated by
 // spaces or tabs. Blank lines and lines whose first non-blank character is `#`
 // are skipped; anything else with other than eight fields is an error. LF or
-// CRLF line endings; a UTF-8 byte-order mark is skipped.
+// CRLF line endings. Byte-order marks as in OBJ (io/lexer.hpp's one rule): a
+// UTF-8 BOM is skipped, UTF-16 text with a BOM is read as its UTF-8 conversion
+// (an odd byte count is an error at line 0; before, UTF-16 failed at line 1
+// with "expected 8 fields").
 //
 // Numbers follow the one rule of lexer.hpp (the same as OBJ and MTL): `1e-46`
 // becomes 0, `1e39` is an error naming the value. Only tmax may be infinite,
@@ -56,7 +59,8 @@ inline float ray_number(std::string_view tok, const char* what, bool allow_inf, 
 /// Parses RAYS text (format above); errors are ParseError "NAME:LINE: ...".
 inline std::vector<Ray> parse_rays(std::string_view text, const std::string& name_for_errors) {
     static constexpr const char* kField[] = {"ox", "oy", "oz", "dx", "dy", "dz", "tmin", "tmax"};
-    if (text.size() >= 3 && text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
+    std::string decoded;  // UTF-16 text converted; `text` then points into it
+    text = detail::obj_decode_text(text, decoded, name_for_errors);
     std::vector<Ray> rays;
     std::size_t line = 0;
     std::size_t pos = 0;

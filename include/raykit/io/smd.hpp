@@ -3,11 +3,11 @@
 //
 // Interface
 // ---------
-//   Bone, BonePose, BoneWeight, VertexWeights: scene/skeleton_data.hpp (the
-//   format-independent skeleton and skin data this parser fills)
+//   Bone, BonePose, BoneWeight, VertexWeights, SmdSkeletonAnim (key frames
+//   and their frame numbers: frames, times, fps = 30, warnings; frame(f)):
+//   scene/skeleton_data.hpp (the format-independent skeleton, skin and
+//   animation data this parser fills)
 //   struct SmdModel      { bones, bind_pose, mesh, weights };
-//   struct SmdSkeletonAnim { frames, times, fps = 30, warnings;      // key frames + their frame numbers
-//                            frame_count(), key_of_frame(f), frame(f) };
 //
 //   SmdModel load_smd_reference(const std::filesystem::path& file);
 //   SmdModel parse_smd_reference(std::string_view text, const std::string& name_for_errors,
@@ -36,7 +36,8 @@
 //
 // Every function throws raykit::ParseError ("FILE:LINE: message") on malformed
 // or unreadable input; LINE is 1-based (an empty file's errors are at line 1),
-// 0 only when the file cannot be opened or read (then what() is "FILE: message").
+// 0 only when the file cannot be opened or read or is UTF-16 of an odd byte
+// count (then what() is "FILE: message").
 //
 // Bounds: memory and time grow linearly with the input, except an animation's
 // key frames, which hold one pose per reference bone each: at most
@@ -45,9 +46,11 @@
 //
 // File format accepted
 // --------------------
-// * Lines end in LF or CRLF; a UTF-8 byte-order mark is skipped; blank lines
-//   and lines starting with `//`, `#` or `;` are ignored everywhere; tokens are
-//   separated by spaces/tabs.
+// * Byte-order marks as in OBJ (io/lexer.hpp's one rule): a UTF-8 BOM is
+//   skipped, UTF-16 text with a BOM is read as its UTF-8 conversion (an odd
+//   byte count is an error at line 0).
+// * Lines end in LF or CRLF; blank lines and lines starting with `//`, `#`
+//   or `;` are ignored everywhere; tokens are separated by spaces/tabs.
 // * Top level: `version 1` (optional; another version is an error), then the
 //   blocks `nodes`, `skeleton`, `triangles`, `vertexanimation`, each ended by a
 //   line `end`. `nodes` must come before `skeleton` and `triangles`; each block
@@ -159,40 +162,6 @@ struct SmdModel {
     std::vector<VertexWeights> weights;      ///< one per mesh vertex
 };
 
-/// An animation SMD retargeted to a reference skeleton: key frames
-/// frames[k][bone] at frame numbers times[k] (see the header comment).
-struct SmdSkeletonAnim {
-    std::vector<std::vector<BonePose>> frames;  ///< key frames, one pose per reference bone
-    std::vector<std::uint32_t> times;           ///< frame number of each key; empty: key k is frame k
-    float fps = 30.0f;
-    std::vector<std::string> warnings;
-
-    std::size_t key_count() const noexcept { return frames.size(); }
-    /// Frames the animation spans: the last key's frame number + 1.
-    std::size_t frame_count() const noexcept {
-        if (times.empty() || frames.empty()) return frames.size();
-        return static_cast<std::size_t>(times.back()) + 1;
-    }
-    /// Index of the key that frame `f` shows: the last key at or before f.
-    /// Throws std::out_of_range for f >= frame_count(), std::invalid_argument
-    /// when times is neither empty nor one entry per key starting at 0.
-    std::size_t key_of_frame(std::size_t f) const {
-        if (f >= frame_count()) {
-            throw std::out_of_range("SmdSkeletonAnim: frame " + std::to_string(f) + " of " +
-                                    std::to_string(frame_count()));
-        }
-        if (times.empty()) return f;
-        if (times.size() != frames.size() || times.front() != 0) {
-            throw std::invalid_argument("SmdSkeletonAnim: times must be empty or one per key frame, starting at 0");
-        }
-        const auto it = std::upper_bound(times.begin(), times.end(), f,
-                                         [](std::size_t v, std::uint32_t t) { return v < t; });
-        return static_cast<std::size_t>(it - times.begin()) - 1;
-    }
-    /// The poses of frame f (one per reference bone).
-    const std::vector<BonePose>& frame(std::size_t f) const { return frames[key_of_frame(f)]; }
-};
-
 inline SmdModel load_smd_reference(const std::filesystem::path& file);
 inline SmdModel parse_smd_reference(std::string_view text, const std::string& name_for_errors,
                                     const std::filesystem::path& base_dir);
@@ -298,15 +267,10 @@ inline std::pair<std::filesystem::path, bool> smd_resolve_texture(const std::fil
 
 namespace detail {
 
-/// Splits the text into trimmed lines (LF or CRLF), skipping nothing.
+/// Splits decoded text (obj_decode_text) into trimmed lines (LF or CRLF), skipping blank and comment lines.
 class SmdLineReader {
 public:
-    explicit SmdLineReader(std::string_view text) : text_(text) {
-        if (text_.size() >= 3 && static_cast<unsigned char>(text_[0]) == 0xEF &&
-            static_cast<unsigned char>(text_[1]) == 0xBB && static_cast<unsigned char>(text_[2]) == 0xBF) {
-            text_.remove_prefix(3);
-        }
-    }
+    explicit SmdLineReader(std::string_view text) : text_(text) {}
     /// Next non-blank, non-comment line; false at the end of the text.
     bool next(std::string_view& line, std::size_t& number) {
         while (pos_ < text_.size()) {
@@ -345,7 +309,8 @@ public:
     }
 
     void parse(std::string_view text) {
-        SmdLineReader reader(text);
+        std::string decoded;  // UTF-16 text converted; the reader's lines point into it
+        SmdLineReader reader(obj_decode_text(text, decoded, name_));
         std::string_view line;
         while (reader.next(line, line_)) {
             std::string_view rest = line;

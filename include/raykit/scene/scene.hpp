@@ -235,6 +235,7 @@ public:
         set(in, transform);
         instances_.push_back(in);
         stale_ = true;
+        ++instance_revision_;
         return static_cast<std::uint32_t>(instances_.size() - 1);
     }
 
@@ -243,6 +244,7 @@ public:
             throw std::out_of_range("raykit::Scene::set_transform: no instance " + std::to_string(instance));
         set(instances_[instance], transform);
         stale_ = true;
+        ++instance_revision_;
     }
 
     /// Vertex stage of a dynamic object: vertex i becomes fn(rest[i], i)
@@ -547,6 +549,9 @@ public:
     const Bvh& top_level() const noexcept { return top_; }
     /// True when update_top_level() is due.
     bool stale() const noexcept { return stale_; }
+    /// Bumped by every add_instance() and set_transform(): a copy of the instances kept elsewhere
+    /// (cl::DeviceScene) compares it with its own to know it is out of date.
+    std::uint64_t instance_revision() const noexcept { return instance_revision_; }
     std::size_t dynamic_object_count() const noexcept {
         return static_cast<std::size_t>(std::count_if(objects_.begin(), objects_.end(), [](const SceneObject& o) { return o.dynamic(); }));
     }
@@ -724,6 +729,7 @@ private:
     Bvh top_;
     BinnedSahBuilder::Config top_config_{.leaf = {.max_leaf_size = 1}};
     bool stale_ = true;
+    std::uint64_t instance_revision_ = 0;
 };
 
 }  // namespace raykit
