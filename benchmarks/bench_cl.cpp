@@ -331,14 +331,14 @@ void BM_FrameCpu(benchmark::State& state) {
     state.counters["Mrays/s"] = double(hits.size()) * 1e-3 / (trace / it);
 }
 
-/// The CPU's fastest path on the device's tree: BlockBvh8::make(mesh, raykit_bvh(s)), the
+/// The CPU's fastest path on the device's tree: BlockBvh8::build(mesh, raykit_bvh(s)), the
 /// 8-wide nodes and 4-triangle blocks MeshTracer uploads (cl/device_tree.hpp).
 void BM_TraceCpuBlocks(benchmark::State& state, const std::string& scene, const std::string& set, bool any) {
     const rkbench::Scene* s = rkbench::scene_or_skip(state, scene);
     if (!s) return;
     static std::map<std::string, std::unique_ptr<raykit::BlockBvh8>> cache;
     auto& blocks = cache[s->name];
-    if (!blocks) blocks = std::make_unique<raykit::BlockBvh8>(raykit::BlockBvh8::make(s->mesh, rkbench::raykit_bvh(*s)));
+    if (!blocks) blocks = std::make_unique<raykit::BlockBvh8>(raykit::BlockBvh8::build(s->mesh, rkbench::raykit_bvh(*s)));
     const auto& rays = rkbench::rays(*s, set);
     std::vector<raykit::Hit> hits(rays.size());
     std::vector<std::uint8_t> occ(rays.size());

@@ -95,7 +95,7 @@ const EdgeCase& edge_case() {
                 e.mesh.triangles.push_back({{at(i, j), at(i + 1, j), at(i + 1, j + 1)}});
                 e.mesh.triangles.push_back({{at(i, j), at(i + 1, j + 1), at(i, j + 1)}});
             }
-        e.wide = raykit::WideBvh8::collapse(
+        e.wide = raykit::WideBvh8::build(
             raykit::build_bvh<raykit::BinnedSahBuilder>(e.mesh, raykit::BinnedSahBuilder::Config{}));
         e.blocks = raykit::BlockBvh8::build(e.mesh);
         std::uniform_int_distribution<int> inner(5, n - 5);

@@ -202,7 +202,7 @@ inline const raykit::WideBvh& raykit_wide_bvh(const Scene& s) {
     static std::map<std::string, std::unique_ptr<raykit::WideBvh>> cache;
     std::lock_guard lock(detail::cache_mutex());
     auto& slot = cache[s.name];
-    if (!slot) slot = std::make_unique<raykit::WideBvh>(raykit::WideBvh::collapse(bvh));
+    if (!slot) slot = std::make_unique<raykit::WideBvh>(raykit::WideBvh::build(bvh));
     return *slot;
 }
 
@@ -212,7 +212,7 @@ inline const raykit::WideBvh8& raykit_wide8_bvh(const Scene& s) {
     static std::map<std::string, std::unique_ptr<raykit::WideBvh8>> cache;
     std::lock_guard lock(detail::cache_mutex());
     auto& slot = cache[s.name];
-    if (!slot) slot = std::make_unique<raykit::WideBvh8>(raykit::WideBvh8::collapse(bvh));
+    if (!slot) slot = std::make_unique<raykit::WideBvh8>(raykit::WideBvh8::build(bvh));
     return *slot;
 }
 

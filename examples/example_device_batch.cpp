@@ -29,7 +29,7 @@ int main(int argc, char** argv) {
     const Mesh mesh = argc > 1 ? load_obj(argv[1]) : make_bumpy_torus(20000);
     const Bvh bvh = build_bvh(mesh);                        // any builder's tree will do
     raykit::cl::MeshTracer tracer(*dev, mesh, bvh);          // compiles the kernels (cached), uploads the tree
-    const BlockBvh8 cpu_tree = BlockBvh8::make(mesh, bvh);  // the CPU's twin of what the device walks
+    const BlockBvh8 cpu_tree = BlockBvh8::build(mesh, bvh);  // the CPU's twin of what the device walks
 
     // Host-made rays: from a sphere around the mesh toward random points of its box, every
     // fourth one aimed exactly at a vertex (where triangles meet: ties, the hard case).

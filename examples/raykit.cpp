@@ -291,9 +291,9 @@ int cmd_trace(const TraceArgs& a) {
     } else {
         // the CPU traces the same tree collapsed to 8-wide nodes: same answers, faster;
         // with the watertight test, through 4-triangle blocks (scene/block_bvh.hpp)
-        const WideBvh8 wide = WideBvh8::collapse(bvh);
+        const WideBvh8 wide = WideBvh8::build(bvh);
         if (tk == TestKind::watertight) {
-            const BlockBvh8 blocks = BlockBvh8::make(mesh, wide, t.threads);
+            const BlockBvh8 blocks = BlockBvh8::build(mesh, wide, t.threads);
             parallel_for(rays.size(), t.threads, [&](std::size_t i) {
                 if (any) occl[i] = intersect_any(blocks, rays[i]);
                 else hits[i] = intersect_closest(blocks, rays[i]);
@@ -382,9 +382,9 @@ int cmd_check(const CheckArgs& a) {
     }
     // every tree the CPU traces: the binary one, its 8-wide collapse and, for the
     // watertight test, the 4-triangle blocks made from that (what `trace` uses)
-    const WideBvh8 wide = WideBvh8::collapse(bvh);
+    const WideBvh8 wide = WideBvh8::build(bvh);
     if (std::string err = wide.validate(refs.boxes); !err.empty()) throw std::runtime_error("invalid wide BVH: " + err);
-    const BlockBvh8 blocks = tk == TestKind::watertight ? BlockBvh8::make(mesh, wide, t.threads) : BlockBvh8{};
+    const BlockBvh8 blocks = tk == TestKind::watertight ? BlockBvh8::build(mesh, wide, t.threads) : BlockBvh8{};
     std::vector<std::uint8_t> bad(n);
     with_test(tk, [&](auto test) {
         using T = decltype(test);

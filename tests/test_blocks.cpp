@@ -130,7 +130,7 @@ TEST(BlockBvh, BuiltForBlocksFillsThemAndMatchesBruteForce) {
         const Bvh a = build_bvh(refs.boxes, refs.centers, plain);
         const Bvh b = build_bvh(refs.boxes, refs.centers, blocky);
         EXPECT_EQ(validate(b, refs.boxes), "");
-        const BlockBvh8 ba = BlockBvh8::make(m, a), bb = BlockBvh8::make(m, b);
+        const BlockBvh8 ba = BlockBvh8::build(m, a), bb = BlockBvh8::build(m, b);
         const double fill_a = double(m.triangle_count()) / (4.0 * double(ba.blocks.size()));
         const double fill_b = double(m.triangle_count()) / (4.0 * double(bb.blocks.size()));
         std::printf("[ info ] %s: block fill %.3f (leaf_block 1, max leaf 8) -> %.3f (leaf_block 4, max leaf 12); "
@@ -167,7 +167,7 @@ TEST(BlockBvh, BuildersRejectABadLeafBlock) {
 
 TEST(BlockBvh, EmptyTinyAndLeafRootTrees) {
     const Mesh empty;
-    const BlockBvh8 e = BlockBvh8::make(empty, Bvh{});
+    const BlockBvh8 e = BlockBvh8::build(empty, Bvh{});
     EXPECT_TRUE(e.empty());
     EXPECT_FALSE(intersect_closest(e, Ray{}).valid());
     EXPECT_FALSE(intersect_any(e, Ray{}));
@@ -177,8 +177,8 @@ TEST(BlockBvh, EmptyTinyAndLeafRootTrees) {
         c.leaf.max_leaf_size = 16;  // small soups become one leaf: the root is a leaf of n triangles
         c.leaf.leaf_block = 4;
         const Bvh bvh = build_bvh<BinnedSahBuilder>(m, c);
-        const BlockBvh8 b = BlockBvh8::make(m, bvh);
-        const BlockBvh2 b2 = BlockBvh2::make(m, bvh);
+        const BlockBvh8 b = BlockBvh8::build(m, bvh);
+        const BlockBvh2 b2 = BlockBvh2::build(m, bvh);
         std::size_t bad = 0;
         for (const Ray& r : raykit::test::random_rays(m, 500, n)) {
             const Hit o = brute_force_closest(m, r);
@@ -195,11 +195,11 @@ TEST(BlockBvh, MakeRejectsATreeThatDoesNotFitTheMesh) {
     Bvh bvh = build_bvh<BinnedSahBuilder>(m, BinnedSahBuilder::Config{});
     Bvh bad_id = bvh;
     bad_id.prim_ids[0] = 1000;
-    EXPECT_THROW(BlockBvh8::make(m, bad_id), std::invalid_argument);
+    EXPECT_THROW(BlockBvh8::build(m, bad_id), std::invalid_argument);
     Bvh bad_range = bvh;
     for (Node& n : bad_range.nodes)
         if (n.is_leaf()) n.count = 1000;
-    EXPECT_THROW(BlockBvh2::make(m, bad_range), std::invalid_argument);
+    EXPECT_THROW(BlockBvh2::build(m, bad_range), std::invalid_argument);
 }
 
 TEST(BlockBvh, RealMeshesMatchBruteForce) {
@@ -210,7 +210,7 @@ TEST(BlockBvh, RealMeshesMatchBruteForce) {
     BuildOptions o;
     o.leaf.leaf_block = 4;
     o.leaf.max_leaf_size = 12;
-    const BlockBvh8 b = BlockBvh8::make(m, build_bvh(MeshView(m), o));
+    const BlockBvh8 b = BlockBvh8::build(m, build_bvh(MeshView(m), o));
     std::size_t bad = 0;
     const std::vector<Ray> rays = raykit::test::random_rays(m, 400, 5);
     for (const Ray& r : rays) {
@@ -236,17 +236,17 @@ TEST(BlockBvh, BuildAndMakeRejectVerticesBeyondTheCoordinateBound) {
     } catch (const std::domain_error& e) {
         says(e, "raykit: mesh");
     }
-    // a tree made without primitive_refs (boxes from elsewhere): make() checks on its own
+    // a tree built without primitive_refs (boxes from elsewhere): build(mesh, tree) checks on its own
     std::vector<AABB> boxes(m.triangles.size(), AABB{vec3(0.0f), vec3(1.0f)});
     std::vector<vec3> centers(m.triangles.size(), vec3(0.5f));
     const Bvh bvh = BinnedSahBuilder::build(boxes, centers, BinnedSahBuilder::Config{});
     for (int w : {2, 8}) {
         try {
-            if (w == 2) (void)BlockBvh2::make(m, bvh);
-            else (void)BlockBvh8::make(m, bvh);
-            ADD_FAILURE() << "BlockBvh make accepted a vertex at -2e19, width " << w;
+            if (w == 2) (void)BlockBvh2::build(m, bvh);
+            else (void)BlockBvh8::build(m, bvh);
+            ADD_FAILURE() << "BlockBvh build(mesh, tree) accepted a vertex at -2e19, width " << w;
         } catch (const std::domain_error& e) {
-            says(e, "BlockBvh::make");
+            says(e, "BlockBvh::build");
         }
     }
     m.positions[7].x = -kMaxCoordinate;  // the bound itself is inside
@@ -309,7 +309,7 @@ std::vector<Ray> batch_test_rays(const Mesh& m, std::size_t n_random, std::uint6
 TEST(Batch, BlockTreePacketsEqualSingleRaysBitForBit) {
     const Mesh m = make_bumpy_torus(20000);
     const BlockBvh8 b = BlockBvh8::build(m);
-    const BlockBvh blocks4 = BlockBvh::make(m, build_bvh(MeshView(m), BuildOptions{}));
+    const BlockBvh blocks4 = BlockBvh::build(m, build_bvh(MeshView(m), BuildOptions{}));
     const std::vector<Ray> rays = batch_test_rays(m, 3001, 21);
     std::vector<Hit> single(rays.size());
     std::vector<bool> single_any(rays.size());

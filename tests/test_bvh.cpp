@@ -31,8 +31,8 @@ std::size_t expect_matches_brute_force(const Mesh& m, const Bvh& bvh, const std:
                                        bool assert_all = true) {
     std::size_t bad = 0;
     // the same tree collapsed to 4-wide nodes must give the same answers
-    const WideBvh wide = WideBvh::collapse(bvh);
-    const WideBvh8 wide8 = WideBvh8::collapse(bvh);
+    const WideBvh wide = WideBvh::build(bvh);
+    const WideBvh8 wide8 = WideBvh8::build(bvh);
     if (assert_all) {
         EXPECT_EQ(wide.validate(primitive_refs(m).boxes), "");
         EXPECT_EQ(wide8.validate(primitive_refs(m).boxes), "");
@@ -40,9 +40,9 @@ std::size_t expect_matches_brute_force(const Mesh& m, const Bvh& bvh, const std:
     // with the watertight test, also the 4-triangle blocks over the binary,
     // 4- and 8-wide trees (scene/block_bvh.hpp): bit-identical answers
     constexpr bool kBlocks = std::is_same_v<Test, Watertight>;
-    const BlockBvh2 blk2 = kBlocks ? BlockBvh2::make(m, bvh) : BlockBvh2{};
-    const BlockBvh blk4 = kBlocks ? BlockBvh::make(m, wide) : BlockBvh{};
-    const BlockBvh8 blk8 = kBlocks ? BlockBvh8::make(m, wide8) : BlockBvh8{};
+    const BlockBvh2 blk2 = kBlocks ? BlockBvh2::build(m, bvh) : BlockBvh2{};
+    const BlockBvh blk4 = kBlocks ? BlockBvh::build(m, wide) : BlockBvh{};
+    const BlockBvh8 blk8 = kBlocks ? BlockBvh8::build(m, wide8) : BlockBvh8{};
     const auto same = [](const Hit& a, const Hit& b) {
         return a.prim == b.prim && a.t == b.t && a.u == b.u && a.v == b.v;
     };
@@ -157,7 +157,7 @@ TEST(Bvh, ExactVertexAndEdgeRaysNeverMissAClosedMesh) {
             Mesh m = make_icosphere(4);
             transform_positions(m, scale, vec3(offset, -offset, offset));
             const Bvh bvh = build(m);
-            const BlockBvh8 blk = BlockBvh8::make(m, bvh);
+            const BlockBvh8 blk = BlockBvh8::build(m, bvh);
             std::mt19937_64 rng(42);
             std::uniform_real_distribution<float> U(-1.0f, 1.0f);
             const vec3 center(offset, -offset, offset);
@@ -396,11 +396,11 @@ TEST(Bvh, EveryTreeShapeRefitsInPlaceToTheRemake) {
     Mesh m = make_bumpy_torus(30000);
     transform_positions(m, 3.0f, vec3(1e4f, 0.0f, 0.0f));
     const Bvh bvh = build_bvh<BinnedSahBuilder>(m, BlockBvh8::sah_config());
-    WideBvh wide4 = WideBvh::collapse(bvh);
-    WideBvh8 wide8 = WideBvh8::collapse(bvh);
-    BlockBvh2 b2 = BlockBvh2::make(m, bvh);
-    BlockBvh b4 = BlockBvh::make(m, bvh);
-    BlockBvh8 b8 = BlockBvh8::make(m, bvh);
+    WideBvh wide4 = WideBvh::build(bvh);
+    WideBvh8 wide8 = WideBvh8::build(bvh);
+    BlockBvh2 b2 = BlockBvh2::build(m, bvh);
+    BlockBvh b4 = BlockBvh::build(m, bvh);
+    BlockBvh8 b8 = BlockBvh8::build(m, bvh);
     for (vec3& p : m.positions) p.z += 0.1f * std::sin(p.x) + 0.5f * std::cos(0.01f * p.y);
     const MeshView view(m);
     const auto box = [&](std::uint32_t i) { return view.bounds(i); };
@@ -411,9 +411,9 @@ TEST(Bvh, EveryTreeShapeRefitsInPlaceToTheRemake) {
     b2.refit(view);
     b4.refit(view);
     b8.refit(view);
-    EXPECT_TRUE(same_blocks(b2, BlockBvh2::make(m, moved)));
-    EXPECT_TRUE(same_blocks(b4, BlockBvh::make(m, WideBvh::collapse(bvh)), false));
-    EXPECT_TRUE(same_blocks(b8, BlockBvh8::make(m, WideBvh8::collapse(bvh)), false));
+    EXPECT_TRUE(same_blocks(b2, BlockBvh2::build(m, moved)));
+    EXPECT_TRUE(same_blocks(b4, BlockBvh::build(m, WideBvh::build(bvh)), false));
+    EXPECT_TRUE(same_blocks(b8, BlockBvh8::build(m, WideBvh8::build(bvh)), false));
     EXPECT_TRUE(tight_boxes(b4, view));
     EXPECT_TRUE(tight_boxes(b8, view));
     EXPECT_EQ(wide8.validate(primitive_refs(m).boxes), "");
@@ -451,7 +451,7 @@ TEST(Bvh, LeafFiltersSkipRejectedTrianglesInEveryStore) {
         orig.push_back(t);
     }
     const Bvh bvh = build_bvh<BinnedSahBuilder>(m, BlockBvh8::sah_config());
-    const BlockBvh8 b8 = BlockBvh8::make(m, bvh);
+    const BlockBvh8 b8 = BlockBvh8::build(m, bvh);
     const auto keep = [](std::uint32_t p, float, float) { return p % 2 == 0; };
     std::size_t bad = 0, hits = 0;
     for (const Ray& r : random_rays(m, 3000, 5)) {
@@ -523,7 +523,7 @@ TEST(Bvh, RealMeshesMatchBruteForce) {
 TEST(WideBvh, CollapseKeepsLeavesAndHalvesTheVisits) {
     const Mesh m = make_bumpy_torus(20000);
     const Bvh bvh = build(m);
-    const WideBvh wide = WideBvh::collapse(bvh);
+    const WideBvh wide = WideBvh::build(bvh);
     EXPECT_EQ(wide.validate(primitive_refs(m).boxes), "");
     EXPECT_EQ(wide.prim_ids, bvh.prim_ids);
     EXPECT_LE(wide.depth(), bvh.depth());
@@ -548,14 +548,14 @@ TEST(WideBvh, CollapseKeepsLeavesAndHalvesTheVisits) {
     EXPECT_LT(sw.nodes * 10, sb.nodes * 7) << "a wide node should replace well over one binary node";
     // moving collapse takes the primitive order along
     Bvh copy = bvh;
-    const WideBvh moved = WideBvh::collapse(std::move(copy));
+    const WideBvh moved = WideBvh::build(std::move(copy));
     EXPECT_EQ(moved.prim_ids, bvh.prim_ids);
     EXPECT_EQ(moved.nodes.size(), wide.nodes.size());
 }
 
 TEST(WideBvh, EmptyOneTriangleAndLeafRoot) {
     Mesh empty;
-    const WideBvh e = WideBvh::collapse(build(empty));
+    const WideBvh e = WideBvh::build(build(empty));
     EXPECT_TRUE(e.empty());
     EXPECT_FALSE(intersect_closest(empty, e, Ray{{0, 0, -1}, 0.0f, {0, 0, 1}, kInf}).valid());
     Mesh one;
@@ -563,7 +563,7 @@ TEST(WideBvh, EmptyOneTriangleAndLeafRoot) {
     one.triangles = {{{0, 1, 2}}};
     const Bvh b1 = build(one);
     ASSERT_TRUE(b1.nodes[0].is_leaf());
-    const WideBvh w1 = WideBvh::collapse(b1);
+    const WideBvh w1 = WideBvh::build(b1);
     EXPECT_EQ(w1.validate(primitive_refs(one).boxes), "");
     const Hit h = intersect_closest(one, w1, Ray{{0.25f, 0.25f, -1.0f}, 0.0f, {0, 0, 1}, kInf});
     EXPECT_EQ(h.prim, 0u);
@@ -642,8 +642,8 @@ TEST(WideBvh, SimdBoxTestEqualsScalarOnHardCases) {
 TEST(WideBvh, EightWideCollapse) {
     const Mesh m = make_bumpy_torus(20000);
     const Bvh bvh = build(m);
-    const WideBvh w4 = WideBvh::collapse(bvh);
-    const WideBvh8 w8 = WideBvh8::collapse(bvh);
+    const WideBvh w4 = WideBvh::build(bvh);
+    const WideBvh8 w8 = WideBvh8::build(bvh);
     EXPECT_EQ(w8.validate(primitive_refs(m).boxes), "");
     EXPECT_LE(w8.depth(), w4.depth());
     EXPECT_LT(w8.nodes.size(), w4.nodes.size());

@@ -1,8 +1,8 @@
 // raykit/bvh/wide.hpp — a 4- or 8-wide BVH collapsed from a binary one, for CPU traversal.
 //
 //   Bvh bvh = BinnedSahBuilder::build(boxes, centers);   // any builder
-//   WideBvh wide = WideBvh::collapse(bvh);                // 4-wide; or collapse(std::move(bvh))
-//   WideBvh8 wide8 = WideBvh8::collapse(bvh);             // 8-wide (one AVX test per node)
+//   WideBvh wide = WideBvh::build(bvh);                   // 4-wide, collapsed; or build(std::move(bvh))
+//   WideBvh8 wide8 = WideBvh8::build(bvh);                // 8-wide (one AVX test per node)
 //   Hit h = intersect_closest(mesh, wide, ray);           // scene/trace.hpp
 //
 // The binary Bvh (bvh/node.hpp) stays the canonical tree: every builder makes
@@ -107,21 +107,25 @@ struct WideBvhT {
         return nodes.size() * sizeof(NodeType) + prim_ids.size() * sizeof(std::uint32_t);
     }
 
-    /// Collapses a binary tree (copies its prim_ids, 4 bytes per primitive).
-    static WideBvhT collapse(const Bvh& bvh) {
+    /// Builds the wide tree of a binary one by collapsing it (copies its prim_ids, 4 bytes per
+    /// primitive).
+    static WideBvhT build(const Bvh& bvh) {
         WideBvhT w;
         w.prim_ids = bvh.prim_ids;
         w.build_nodes(bvh);
         return w;
     }
-    /// Collapses a binary tree that is no longer needed (takes its prim_ids).
-    static WideBvhT collapse(Bvh&& bvh) {
+    /// Builds from a binary tree that is no longer needed (takes its prim_ids).
+    static WideBvhT build(Bvh&& bvh) {
         WideBvhT w;
         w.build_nodes(bvh);
         w.prim_ids = std::move(bvh.prim_ids);
         bvh.nodes.clear();
         return w;
     }
+    /// The name build() had before 0.2 (every raykit tree is now made by a `build`).
+    [[deprecated("raykit: use WideBvhT::build")]] static WideBvhT collapse(const Bvh& bvh) { return build(bvh); }
+    [[deprecated("raykit: use WideBvhT::build")]] static WideBvhT collapse(Bvh&& bvh) { return build(std::move(bvh)); }
 
     /// Depth of the deepest wide node (root = 0).
     int depth() const {
@@ -202,7 +206,7 @@ private:
         const std::size_t n = bvh.nodes.size();
         nodes.reserve(n / 2 + 1);
         const auto check = [&](std::uint32_t i) {
-            if (i >= n) throw std::invalid_argument("WideBvh::collapse: child index out of range");
+            if (i >= n) throw std::invalid_argument("raykit::WideBvh::build: child index out of range");
         };
         struct Task {
             std::uint32_t binary;  // binary inner node whose subtree becomes wide node `wide`

@@ -67,7 +67,7 @@ inline void camera_rays(Device& dev, ::cl::Kernel& k, const CameraFrame& frame, 
 
 class MeshTracer {
 public:
-    /// Uploads the tree in the device's form (device_tree() of BlockBvh8::make(mesh, bvh): 8-wide
+    /// Uploads the tree in the device's form (device_tree() of BlockBvh8::build(mesh, bvh): 8-wide
     /// nodes over 4-triangle blocks); `extra_options` go to trace_program().
     MeshTracer(Device& dev, const MeshView& mesh, const Bvh& bvh, const std::string& extra_options = {}) : dev_(&dev) {
         if (mesh.positions.size() >= 0x55555555u || mesh.size() >= 0x55555555u)
@@ -84,7 +84,7 @@ public:
     void update_tree(const MeshView& mesh, const Bvh& bvh) {
         if (bvh.prim_ids.size() != mesh.size())
             throw std::invalid_argument("raykit::cl::MeshTracer: tree and mesh differ in triangle count");
-        const DeviceTree tree = device_tree(BlockBvhT<kDeviceWidth>::make(mesh, bvh));
+        const DeviceTree tree = device_tree(BlockBvhT<kDeviceWidth>::build(mesh, bvh));
         if (tree.nodes.size() >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::MeshTracer: tree too large");
         nodes_ = Buffer<DeviceNode>(*dev_, tree.nodes, CL_MEM_READ_ONLY);
         blocks_ = Buffer<TriangleBlock4>(*dev_, tree.blocks, CL_MEM_READ_ONLY);

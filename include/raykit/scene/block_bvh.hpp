@@ -1,7 +1,7 @@
 // raykit/scene/block_bvh.hpp — a wide BVH whose leaves are blocks of four triangles, for CPU tracing.
 //
 //   BlockBvh8 blocks = BlockBvh8::build(mesh);       // a tree built for blocks (fastest), or from any tree:
-//   BlockBvh8 same = BlockBvh8::make(mesh, bvh);     // (or make(mesh, WideBvh8::collapse(bvh)))
+//   BlockBvh8 same = BlockBvh8::build(mesh, bvh);     // from any tree (or build(mesh, WideBvh8::build(bvh)))
 //   Hit h = intersect_closest(blocks, ray);          // same answers as intersect_closest(mesh, bvh, ray)
 //   bool occluded = intersect_any(blocks, ray);
 //
@@ -77,8 +77,8 @@ struct BlockBvhT {
 
     /// Blocks for `src`'s leaves, vertices from `mesh` (which `src` was built
     /// over). Throws std::domain_error for a vertex beyond ±2^32 (math/limits.hpp).
-    static BlockBvhT make(const MeshView& mesh, const Tree& src, unsigned threads = 0) {
-        check_positions(mesh.positions, "raykit::BlockBvh::make");
+    static BlockBvhT build(const MeshView& mesh, const Tree& src, unsigned threads = 0) {
+        check_positions(mesh.positions, "raykit::BlockBvh::build");
         return assemble(mesh, src, threads);
     }
     /// Builds a tree for blocks over `mesh` (binned SAH, sah_config()) and makes them.
@@ -87,7 +87,7 @@ struct BlockBvhT {
         const PrimitiveRefs r = primitive_refs(mesh, threads);
         const Bvh bvh = BinnedSahBuilder::build(r.boxes, r.centers, sah_config(threads));
         if constexpr (W == 2) return assemble(mesh, bvh, threads);
-        else return assemble(mesh, WideBvhT<W>::collapse(bvh), threads);
+        else return assemble(mesh, WideBvhT<W>::build(bvh), threads);
     }
 
     /// The leaf store the queries walk.
@@ -95,7 +95,7 @@ struct BlockBvhT {
 
     /// After `mesh`'s vertices moved (same triangles, the mesh this was made
     /// over): rewrites every block from the mesh and every box bottom-up, in
-    /// place. Equal to make(mesh, refitted source tree). No range check: the
+    /// place. Equal to build(mesh, refitted source tree). No range check: the
     /// caller checks the root box (Scene::move_vertices does).
     void refit(const MeshView& mesh, unsigned threads = 0) {
         if (empty()) return;
@@ -131,7 +131,7 @@ struct BlockBvhT {
     }
 
   private:
-    /// make() without the range check.
+    /// build(mesh, tree) without the range check.
     static BlockBvhT assemble(const MeshView& mesh, const Tree& src, unsigned threads) {
         BlockBvhT b;
         b.tree.nodes = src.nodes;
@@ -187,10 +187,21 @@ struct BlockBvhT {
         return c;
     }
     /// Collapses `bvh` to W wide and makes the blocks.
-    static BlockBvhT make(const MeshView& mesh, const Bvh& bvh, unsigned threads = 0)
+    static BlockBvhT build(const MeshView& mesh, const Bvh& bvh, unsigned threads = 0)
         requires(W != 2)
     {
-        return make(mesh, WideBvhT<W>::collapse(bvh), threads);
+        return build(mesh, WideBvhT<W>::build(bvh), threads);
+    }
+    /// The name build(mesh, tree) had before 0.2 (every raykit tree is now made by a `build`).
+    [[deprecated("raykit: use BlockBvhT::build(mesh, tree)")]] static BlockBvhT make(const MeshView& mesh, const Tree& src,
+                                                                                    unsigned threads = 0) {
+        return build(mesh, src, threads);
+    }
+    [[deprecated("raykit: use BlockBvhT::build(mesh, bvh)")]] static BlockBvhT make(const MeshView& mesh, const Bvh& bvh,
+                                                                                   unsigned threads = 0)
+        requires(W != 2)
+    {
+        return build(mesh, bvh, threads);
     }
 };
 

@@ -339,7 +339,7 @@ public:
     void rebuild_object(std::uint32_t object) {
         SceneObject& o = objects_.at(object);
         o.bvh = build_bvh<BinnedSahBuilder>(o.mesh, o.config);
-        o.blocks = BlockBvh8::make(o.mesh, o.bvh, o.config.threads);
+        o.blocks = BlockBvh8::build(o.mesh, o.bvh, o.config.threads);
         stale_ = true;
     }
 
@@ -683,7 +683,7 @@ private:
         SceneObject o;
         o.kind = kind;
         o.config = cfg;
-        o.blocks = BlockBvh8::make(mesh, bvh, cfg.threads);
+        o.blocks = BlockBvh8::build(mesh, bvh, cfg.threads);
         o.bvh = std::move(bvh);
         if (kind == ObjectKind::dynamic) {
             o.rest.resize(mesh.positions.size());
