@@ -440,6 +440,10 @@ public:
                          textures_, texels_, rec);
                 launch(dev.queue(), k.closest, n, kTraceGroupSize, &events.emplace_back(Stage::trace, slot).event);
                 const std::uint32_t rays_here = depth < shade.max_depth ? max_rays : 0u;
+                // one ray per pixel in this bounce (camera rays, or paths that never branch):
+                // the shade kernel, and the shadow kernel when each ray has at most one shadow
+                // ray, add colours without atomics (kernels/raykit/kernels/shade.hpp)
+                const std::uint32_t one_per_pixel = depth == 0 || max_rays <= 1 ? 1u : 0u;
                 const std::size_t next_cap = n * rays_here, shadow_cap = n * max_shadows;
                 if (next_cap >= 0xFFFFFFFFu || shadow_cap >= 0xFFFFFFFFu)
                     throw std::length_error("raykit::cl::DeviceRenderer: ray queue beyond 2^32 rays");
@@ -450,7 +454,7 @@ public:
                 set_args(k.shade, queue_, hits_, steps_, static_cast<std::uint32_t>(n), sc.instances(), sc.objects(),
                          sc.triangles(), sc.positions(), sc.vertices(), material_ids_, shade_objects_, materials_,
                          textures_, texels_, srgb_lut_, lights_, rec, image_, next_, counters_, shadow_, rays_here,
-                         max_shadows, params);
+                         max_shadows, one_per_pixel, params);
                 launch(dev.queue(), k.shade, n, kTraceGroupSize, &events.emplace_back(Stage::shade, slot).event);
                 std::uint32_t cnt[2] = {0u, 0u};
                 counters_.read(dev, std::span<std::uint32_t>(cnt, 2));
@@ -460,7 +464,8 @@ public:
                     set_args(k.shadow, sc.top_nodes(), sc.top_count(), sc.top_ids(), sc.instances(), sc.objects(),
                              sc.nodes(), sc.blocks(), sc.triangles(), shadow_,
                              static_cast<std::uint32_t>(shadow_n), image_, sc.vertices(), material_ids_,
-                             shade_objects_, materials_, textures_, texels_, rec);
+                             shade_objects_, materials_, textures_, texels_, rec,
+                             one_per_pixel != 0 && max_shadows <= 1 ? 1u : 0u);
                     launch(dev.queue(), k.shadow, shadow_n, kTraceGroupSize,
                            &events.emplace_back(Stage::shadow, slot).event);
                 }
