@@ -16,8 +16,8 @@
 // (tests/test_bvh.cpp checks it against single rays on random, camera and mixed-octant rays).
 //
 // All lanes of a walk share one octant (the signs of the direction pick the near planes, as a
-// single ray's do); a packet whose rays point into several octants is walked once per octant
-// present, each time with the other lanes off.
+// single ray's do): the caller passes the lanes of one octant (scene/trace.hpp walks packets
+// whose rays point into several octants ray by ray: they are not coherent).
 //
 // Ordering: children are entered nearest first by the entry distance of the packet's first
 // active ray (the others follow it: camera tiles and shadow rays to one light are coherent).
