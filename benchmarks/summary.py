@@ -7,7 +7,7 @@
 
 Case names (suffixes Google Benchmark appends, such as /min_time:0.500 or /real_time,
 are ignored):
-    trace/<scene>/<rays>/<query>/<raykit|wide8|block8|embree>/threads:<T>
+    trace/<scene>/<rays>/<query>/<raykit|wide8|block8|batch|embree|embree_high|embree16>/threads:<T>
     build/<scene>/raykit/threads:<T>
     build/<scene>/embree_scene/quality:<q>/threads:<T>
     sahcmp/<scene>/leaf:<L>/<raykit|embree_builder>
@@ -104,15 +104,23 @@ def trace_section(runs):
             if lib in c and "mismatch" in c[lib]:
                 mm = int(c[lib]["mismatch"])
         bd = int(c["block8"]["block_vs_binary"]) if "block8" in c and "block_vs_binary" in c["block8"] else None
+        bt = mrays(c["batch"]) if "batch" in c else None
+        eh = mrays(c["embree_high"]) if "embree_high" in c else None
+        e16 = mrays(c["embree16"]) if "embree16" in c else None
+        bvs = int(c["batch"]["batch_vs_single"]) if "batch" in c and "batch_vs_single" in c["batch"] else None
         hit = c.get("raykit", c.get("embree", {})).get("hit_frac")
-        rows.append(list(key) + [rk, w8, b8, em, ratio(rk, em), ratio(w8, em), ratio(b8, em),
-                                 fmt(hit, 3) if hit is not None else "–",
-                                 str(mm) if mm is not None else "–", str(bd) if bd is not None else "–"])
+        rows.append(list(key) + [rk, w8, b8, bt, em, eh, e16, ratio(rk, em), ratio(b8, em), ratio(b8, eh),
+                                 ratio(bt, e16), fmt(hit, 3) if hit is not None else "–",
+                                 str(mm) if mm is not None else "–", str(bd) if bd is not None else "–",
+                                 str(bvs) if bvs is not None else "–"])
     return ("### Tracing (Mrays/s, higher is better; raykit = binary Bvh, wide8 = the same tree as a "
-            "WideBvh8, block8 = BlockBvh8::build: a tree built for 4-triangle blocks, 8-wide)\n\n" +
-            table(["scene", "rays", "query", "threads", "raykit", "wide8", "block8", "Embree",
-                   "raykit/Embree", "wide8/Embree", "block8/Embree",
-                   "hit frac", "mismatch vs Embree", "block8 vs binary"], rows))
+            "WideBvh8, block8 = BlockBvh8::build: a tree built for 4-triangle blocks, 8-wide; batch = "
+            "block8 through the batch call (packets of coherent rays); Embree MEDIUM and HIGH rtcIntersect1, "
+            "Embree16 = rtcIntersect16 on MEDIUM)\n\n" +
+            table(["scene", "rays", "query", "threads", "raykit", "wide8", "block8", "batch", "Embree",
+                   "Embree HIGH", "Embree16", "raykit/Embree", "block8/Embree", "block8/Embree HIGH",
+                   "batch/Embree16", "hit frac", "mismatch vs Embree", "block8 vs binary",
+                   "batch vs block8"], rows))
 
 
 def build_section(runs):
