@@ -194,12 +194,7 @@ inline void add_animate_options(CLI::App& app, AnimateArgs& a) {
     app.add_option("--device", a.device, "where the frame runs: cpu (default) or cl (skinning, refit, render on the device)")
         ->type_name("")
         ->check(CLI::IsMember({"cpu", "cl"}));
-    app.add_option("--width", a.width, "image width, 1..65536 (default 640; at most 16777216 pixels in all)")
-        ->type_name("W")
-        ->transform(count_in(1, cr::kMaxSide));
-    app.add_option("--height", a.height, "image height, 1..65536 (default 480)")
-        ->type_name("H")
-        ->transform(count_in(1, cr::kMaxSide));
+    add_image_size_options(app, a.width, a.height);
     app.add_option("--spp", a.spp, "samples per pixel, 1..65536 (default 1)")->type_name("N")->transform(count_in(1, cr::kMaxSpp));
     app.add_option("--max-depth", a.max_depth, "reflection/refraction bounces, 0..1000 (default 2)")
         ->type_name("D")
@@ -208,9 +203,7 @@ inline void add_animate_options(CLI::App& app, AnimateArgs& a) {
         ->type_name("EX EY EZ TX TY TZ")
         ->expected(6)
         ->check(finite());
-    app.add_option("--fov", a.fov, "vertical field of view in degrees, in (0, 180) (default 45)")
-        ->type_name("DEG")
-        ->check(real_in([](double d) { return d > 0.0 && d < 180.0; }, "must be in (0, 180)"));
+    add_fov_option(app, a.fov);
     app.add_option("--light", a.light_values, "point light, repeatable (default: a key light)")
         ->type_name("X Y Z R G B")
         ->expected(6)
@@ -226,9 +219,7 @@ inline void add_animate_options(CLI::App& app, AnimateArgs& a) {
     app.add_option("--yaw", a.yaw, "turn the character about the vertical, degrees (default -50: facing the default camera)")
         ->type_name("DEG")
         ->check(finite());
-    app.add_option("--threads", a.threads, "worker threads, 0..1024, 0 = all (default 0)")
-        ->type_name("T")
-        ->transform(count_in(0, raykit::kMaxThreads));
+    add_threads_option(app, a.threads);
 }
 
 /// What the parser cannot check: OUT's pattern (and one file for several frames), the image

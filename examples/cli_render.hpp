@@ -198,6 +198,32 @@ inline void attach_progress(ProgressBar& bar, RenderSettings& set, bool quiet) {
 namespace raykit_cli {
 
 /// The options of `raykit render` on `app` (a subcommand, or an app of its own), filling `a`.
+/// --width and --height, the same on every command that writes images.
+template <class W, class H>
+void add_image_size_options(CLI::App& app, W& width, H& height) {
+    namespace cr = raykit::detail::cli_render;
+    app.add_option("--width", width, "image width, 1..65536 (default 640; at most 16777216 pixels in all)")
+        ->type_name("W")
+        ->transform(count_in(1, cr::kMaxSide));
+    app.add_option("--height", height, "image height, 1..65536 (default 480)")
+        ->type_name("H")
+        ->transform(count_in(1, cr::kMaxSide));
+}
+/// --fov, the same on every command with a camera.
+template <class F>
+void add_fov_option(CLI::App& app, F& fov) {
+    app.add_option("--fov", fov, "vertical field of view in degrees, in (0, 180) (default 45)")
+        ->type_name("DEG")
+        ->check(real_in([](double d) { return d > 0.0 && d < 180.0; }, "must be in (0, 180)"));
+}
+/// --threads, the same on every command that renders.
+template <class T>
+void add_threads_option(CLI::App& app, T& threads) {
+    app.add_option("--threads", threads, "worker threads, 0..1024, 0 = all (default 0)")
+        ->type_name("T")
+        ->transform(count_in(0, raykit::kMaxThreads));
+}
+
 inline void add_render_options(CLI::App& app, RenderArgs& a) {
     namespace cr = raykit::detail::cli_render;
     using MOP = CLI::MultiOptionPolicy;
@@ -205,12 +231,7 @@ inline void add_render_options(CLI::App& app, RenderArgs& a) {
     app.add_option("OUT.png", a.out, "the image: PNG, or PFM (linear float RGB) when the name ends in .pfm")
         ->required()
         ->type_name("");
-    app.add_option("--width", a.width, "image width, 1..65536 (default 640; at most 16777216 pixels in all)")
-        ->type_name("W")
-        ->transform(count_in(1, cr::kMaxSide));
-    app.add_option("--height", a.height, "image height, 1..65536 (default 480)")
-        ->type_name("H")
-        ->transform(count_in(1, cr::kMaxSide));
+    add_image_size_options(app, a.width, a.height);
     app.add_option("--spp", a.spp, "samples per pixel, stratified and jittered, 1..65536 (default 1)")
         ->type_name("N")
         ->transform(count_in(1, cr::kMaxSpp));
@@ -225,9 +246,7 @@ inline void add_render_options(CLI::App& app, RenderArgs& a) {
         ->expected(6)
         ->check(finite());
     app.add_option("--up", a.up, "camera up vector (default 0 1 0)")->type_name("UX UY UZ")->expected(3)->check(finite());
-    app.add_option("--fov", a.fov, "vertical field of view in degrees, in (0, 180) (default 45)")
-        ->type_name("DEG")
-        ->check(real_in([](double d) { return d > 0.0 && d < 180.0; }, "must be in (0, 180)"));
+    add_fov_option(app, a.fov);
     app.add_option("--light", a.lights,
                    "point light, repeatable (default: a key light above-left of the camera); colours here and "
                    "in --sun, --ambient, --background are >= 0")
@@ -262,9 +281,7 @@ inline void add_render_options(CLI::App& app, RenderArgs& a) {
         ->type_name("S")
         ->transform(count_in(0, std::numeric_limits<std::uint64_t>::max()));
     app.add_flag("--no-jitter", a.no_jitter, "samples at stratum centres (1 spp = pixel centres)");
-    app.add_option("--threads", a.threads, "worker threads, 0..1024, 0 = all (default 0)")
-        ->type_name("T")
-        ->transform(count_in(0, raykit::kMaxThreads));
+    add_threads_option(app, a.threads);
     app.add_option("--device", a.device, "renderer: cpu (default) or cl (the OpenCL device, the CPU's image)")
         ->type_name("")
         ->check(CLI::IsMember({"cpu", "cl"}));

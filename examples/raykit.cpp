@@ -101,9 +101,7 @@ void add_tree_options(CLI::App& app, TreeArgs& t) {
                    "--leaf-size 12 suits the CPU trace, which tests leaves 4 triangles at a time)")
         ->type_name("")
         ->check(CLI::IsMember({1u, 2u, 4u, 8u, 16u}));
-    app.add_option("--threads", t.threads, "worker threads, 0..1024, 0 = all (default)")
-        ->type_name("T")
-        ->transform(count_in(0, kMaxThreads));
+    raykit_cli::add_threads_option(app, t.threads);
     app.add_option("--window", t.window, "sortaxis: candidates per element, 1..4096 (default 2; the thesis used 6)")
         ->type_name("W")
         ->transform(count_in(1, 4096));
