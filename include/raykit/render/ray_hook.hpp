@@ -168,7 +168,7 @@ SampleResult shade_sample(const ShadeScene&, const ShadeSettings&, const CameraS
 /// What a CPU hook may call while it shades one ray (see the header comment).
 class RayHookContext {
 public:
-    void add_color(const vec3& c) {
+    RAYKIT_INLINE void add_color(const vec3& c) {
         if (deferred_) deferred_->adds.push_back({c, kInvalidIndex});
         else color_ += c;
     }
@@ -181,7 +181,7 @@ public:
     /// The frame's settings, depth_far and ao_radius resolved (resolve_shade_settings).
     const ShadeSettings& settings() const noexcept { return *set_; }
     /// Any hit of (org, dir) on [0, tmax]: adds c when nothing blocks it. False past the budget.
-    bool emit_shadow(const vec3& org, const vec3& dir, float tmax, const vec3& c) {
+    RAYKIT_INLINE bool emit_shadow(const vec3& org, const vec3& dir, float tmax, const vec3& c) {
         if (shadows_left_ == 0) return false;
         --shadows_left_;
         ++counters_->rays.shadow;

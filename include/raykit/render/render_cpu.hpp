@@ -237,7 +237,7 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
         std::vector<Ray> rays;
         std::vector<Hit> hits;
         DeferredShadows deferred;
-        std::vector<SampleResult> results;
+        std::vector<float> alphas;
         std::vector<std::size_t> adds_end;
         for (std::size_t band = b0; band < b1; ++band) {
             const auto y0 = static_cast<std::uint32_t>(band * kCameraBand);
@@ -261,7 +261,7 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
                             sampler.begin_pixel(pixel);
                             for (unsigned s = 0; s < spp; ++s, ++k) {
                                 const vec2 j = sampler.sample(s, rngs[k]);
-                                rays[k] = frame.ray(x, y, j.x, j.y);
+                                frame.ray_into(rays[k], x, y, j.x, j.y);
                                 samples[k].pixel = pixel;
                             }
                         }
@@ -287,11 +287,12 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
                 }
                 // shaded sample by sample, their shadow rays deferred and traced as one batch
                 deferred.clear();
-                results.resize(samples.size());
+                alphas.resize(samples.size());
                 adds_end.resize(samples.size());
-                for (k = 0; k < samples.size(); ++k) {
-                    results[k] = shade_sample<Hook, Q>(scene, shade_set, samples[k], rngs[k], params,
-                                                       row_counters[samples[k].pixel / W], scratch, &deferred);
+                for (k = 0; k < samples.size(); ++k) {  // only the alpha is kept: the colour is deferred
+                    alphas[k] = shade_sample<Hook, Q>(scene, shade_set, samples[k], rngs[k], params,
+                                                      row_counters[samples[k].pixel / W], scratch, &deferred)
+                                    .alpha;
                     adds_end[k] = deferred.adds.size();
                 }
                 if (!deferred.rays.empty()) {
@@ -307,7 +308,7 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
                     float cover = 0.0f;
                     for (unsigned s = 0; s < spp; ++s) {
                         sum += deferred.color(k + s == 0 ? 0 : adds_end[k + s - 1], adds_end[k + s]);
-                        cover += results[k + s].alpha;
+                        cover += alphas[k + s];
                     }
                     const std::uint32_t pixel = samples[k].pixel;
                     img.at(pixel % W, pixel / W) = vec4(sum * inv_spp, cover * inv_spp);
