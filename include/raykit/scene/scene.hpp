@@ -453,45 +453,33 @@ public:
     }
 
     /// Closest hits of a batch: hits[i] is intersect_closest<Trees>(rays[i], keep) bit for bit.
-    /// With block trees and a one-leaf top level (at most kOneLeafTopLevel instances) the rays
-    /// go kPacketWidth at a time through each object's tree as one packet
-    /// (bvh/traverse_packet.hpp); otherwise ray by ray. Runs on the calling thread (callers
+    /// Under a one-leaf top level (at most kOneLeafTopLevel instances) the rays go kPacketWidth
+    /// at a time through each object's block tree as one packet (bvh/traverse_packet.hpp);
+    /// otherwise, and over binary trees, ray by ray. Runs on the calling thread (callers
     /// spread batches over threads: the renderer's rows, or raykit::parallel_for).
     template <SceneTrees Trees = SceneTrees::blocks, class Keep = AcceptAll>
     void intersect_closest(std::span<const Ray> rays, std::span<Hit> hits, const Keep& keep = {}) const {
-        require_fresh();
         detail::check_batch(rays.size(), hits.size(), "Scene::intersect_closest");
-        if constexpr (Trees == SceneTrees::blocks) {
-            if (top_.nodes.size() == 1) {
-                const InstanceLeaves<Trees, Keep, std::nullptr_t> leaves{this, keep, nullptr};
-                for (std::size_t i = 0; i < rays.size(); i += kPacketWidth) {
-                    const auto n = static_cast<unsigned>(std::min<std::size_t>(kPacketWidth, rays.size() - i));
-                    leaves.closest_packet(rays.data() + i, n, top_.nodes[0].count, hits.data() + i);
-                }
-                return;
-            }
-        }
-        for (std::size_t i = 0; i < rays.size(); ++i) hits[i] = intersect_closest<Trees>(rays[i], keep);
+        const InstanceLeaves<Trees, Keep, std::nullptr_t> leaves{this, keep, nullptr};
+        batch<Trees>(
+            rays.size(),
+            [&](std::size_t i, unsigned n) { leaves.closest_packet(rays.data() + i, n, top_.nodes[0].count, hits.data() + i); },
+            [&](std::size_t i) { hits[i] = intersect_closest<Trees>(rays[i], keep); });
     }
 
     /// Any hits of a batch: occluded[i] is intersect_any<Trees>(rays[i], keep) (1 or 0), as
     /// packets under the same conditions as the closest-hit batch.
     template <SceneTrees Trees = SceneTrees::blocks, class Keep = AcceptAll>
     void intersect_any(std::span<const Ray> rays, std::span<std::uint8_t> occluded, const Keep& keep = {}) const {
-        require_fresh();
         detail::check_batch(rays.size(), occluded.size(), "Scene::intersect_any");
-        if constexpr (Trees == SceneTrees::blocks) {
-            if (top_.nodes.size() == 1) {
-                const InstanceLeaves<Trees, Keep, std::nullptr_t> leaves{this, keep, nullptr};
-                for (std::size_t i = 0; i < rays.size(); i += kPacketWidth) {
-                    const auto n = static_cast<unsigned>(std::min<std::size_t>(kPacketWidth, rays.size() - i));
-                    const unsigned m = leaves.any_packet(rays.data() + i, n, top_.nodes[0].count);
-                    for (unsigned k = 0; k < n; ++k) occluded[i + k] = std::uint8_t((m >> k) & 1u);
-                }
-                return;
-            }
-        }
-        for (std::size_t i = 0; i < rays.size(); ++i) occluded[i] = intersect_any<Trees>(rays[i], keep) ? 1 : 0;
+        const InstanceLeaves<Trees, Keep, std::nullptr_t> leaves{this, keep, nullptr};
+        batch<Trees>(
+            rays.size(),
+            [&](std::size_t i, unsigned n) {
+                const unsigned m = leaves.any_packet(rays.data() + i, n, top_.nodes[0].count);
+                for (unsigned k = 0; k < n; ++k) occluded[i + k] = std::uint8_t((m >> k) & 1u);
+            },
+            [&](std::size_t i) { occluded[i] = intersect_any<Trees>(rays[i], keep) ? 1 : 0; });
     }
 
     /// Oracle: every triangle of every instance, in object space (the same
@@ -557,6 +545,20 @@ public:
     }
 
 private:
+    /// The batch rule: packet(first, n) over kPacketWidth rays at a time under a one-leaf top
+    /// level (the object walks decide whether their tree takes packets: scene/trace.hpp), else
+    /// ray(i) for each ray through the top-level walk.
+    template <SceneTrees Trees, class PacketFn, class RayFn>
+    void batch(std::size_t size, PacketFn&& packet, RayFn&& ray) const {
+        require_fresh();
+        if (top_.nodes.size() == 1) {
+            for (std::size_t i = 0; i < size; i += kPacketWidth)
+                packet(i, static_cast<unsigned>(std::min<std::size_t>(kPacketWidth, size - i)));
+            return;
+        }
+        for (std::size_t i = 0; i < size; ++i) ray(i);
+    }
+
     /// The top-level leaf store: a slot is an instance; its leaf runs the object's walk.
     template <SceneTrees Trees, class Keep, class Stats>
     struct InstanceLeaves {
@@ -605,9 +607,7 @@ private:
             return found;
         }
         /// closest() over slots [0, count) for rays[0, n) as packets, into best[0, n).
-        void closest_packet(const Ray* rays, unsigned n, std::uint32_t count, Hit* best) const
-            requires(Trees == SceneTrees::blocks)
-        {
+        void closest_packet(const Ray* rays, unsigned n, std::uint32_t count, Hit* best) const {
             float tm[kPacketWidth];
             for (unsigned r = 0; r < n; ++r) {
                 best[r] = Hit{};
@@ -624,7 +624,10 @@ private:
                     for (unsigned i = 0; i < n; ++i) local[i] = object_ray(in, rays[i], tm[i]);
                     r = local;
                 }
-                closest_hit_packet(o.blocks.tree, o.blocks.leaves(), r, tm, n, h, keep_for(inst));
+                if constexpr (Trees == SceneTrees::blocks)
+                    closest_hit_packet(o.blocks.tree, o.blocks.leaves(), r, tm, n, h, keep_for(inst));
+                else
+                    closest_hit_packet(o.bvh, indexed_leaves(o.mesh, o.bvh), r, tm, n, h, keep_for(inst));
                 for (unsigned i = 0; i < n; ++i) {
                     if (!h[i].valid()) continue;
                     h[i].inst = inst;
@@ -636,9 +639,7 @@ private:
             }
         }
         /// any() over slots [0, count) for rays[0, n) as packets: bit i set when rays[i] is blocked.
-        unsigned any_packet(const Ray* rays, unsigned n, std::uint32_t count) const
-            requires(Trees == SceneTrees::blocks)
-        {
+        unsigned any_packet(const Ray* rays, unsigned n, std::uint32_t count) const {
             unsigned blocked = 0;
             const unsigned all = (1u << n) - 1;
             Ray local[kPacketWidth];
@@ -651,7 +652,10 @@ private:
                     for (unsigned i = 0; i < n; ++i) local[i] = object_ray(in, rays[i], rays[i].tmax);
                     r = local;
                 }
-                blocked |= any_hit_packet(o.blocks.tree, o.blocks.leaves(), r, n, keep_for(inst));
+                if constexpr (Trees == SceneTrees::blocks)
+                    blocked |= any_hit_packet(o.blocks.tree, o.blocks.leaves(), r, n, keep_for(inst));
+                else
+                    blocked |= any_hit_packet(o.bvh, indexed_leaves(o.mesh, o.bvh), r, n, keep_for(inst));
             }
             return blocked;
         }

@@ -201,21 +201,6 @@ inline constexpr bool kPacketTree = false;
 template <int W>
 inline constexpr bool kPacketTree<WideBvhT<W>> = true;
 
-/// True when rays[0, n) point into one octant (the signs of their directions agree): the
-/// test for a coherent packet. Rays into several octants (random rays, ambient-occlusion rays
-/// from one point) share few nodes: walked as packets they ran at 0.5x their single-ray speed
-/// (bench_trace, bunny random rays, 3.4 against 6.2 Mrays/s), so they are walked one by one.
-inline bool one_octant(const Ray* rays, unsigned n) noexcept {
-    const auto signs = [](const Ray& r) {
-        return unsigned(std::signbit(r.dir.x)) | unsigned(std::signbit(r.dir.y)) << 1 |
-               unsigned(std::signbit(r.dir.z)) << 2;
-    };
-    const unsigned s0 = signs(rays[0]);
-    for (unsigned k = 1; k < n; ++k)
-        if (signs(rays[k]) != s0) return false;
-    return true;
-}
-
 /// Closest accepted hits of rays[0, n) (n ≤ kPacketWidth) walked as one packet: hits[k] is
 /// closest_hit_within(tree, leaves, rays[k], tmax[k], keep) bit for bit (tmax null: each
 /// ray's own tmax). Trees a packet cannot walk (the binary Bvh) and rays into several
@@ -234,7 +219,7 @@ RAYKIT_INLINE void closest_hit_packet(const Tree& tree, const Leaves& leaves, co
             hits[k] = Hit{};
             rd[k] = Leaves::prepare(rays[k]);
         }
-        traverse_packet<ClosestHit>(tree, p, (1u << n) - 1, p.octant[0],
+        traverse_packet<ClosestHit>(tree, p, (1u << n) - 1,
                                     [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
                                         for (; m; m &= m - 1) {
                                             const int k = std::countr_zero(m);
@@ -259,7 +244,7 @@ RAYKIT_INLINE unsigned any_hit_packet(const Tree& tree, const Leaves& leaves, co
         const RayPacket<> p(rays, n);
         typename Leaves::RayData rd[kPacketWidth];
         for (unsigned k = 0; k < n; ++k) rd[k] = Leaves::prepare(rays[k]);
-        hit = traverse_packet<AnyHit>(tree, p, (1u << n) - 1, p.octant[0],
+        hit = traverse_packet<AnyHit>(tree, p, (1u << n) - 1,
                                       [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
                                           unsigned done = 0;
                                           for (; m; m &= m - 1) {
