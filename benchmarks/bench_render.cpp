@@ -581,7 +581,10 @@ void cross_check(EmbreeFrame& f, const BenchScene& bs) {
     }
     make_shadow_rays(f, rk, 1, srk);
     for (std::size_t i = 0; i < n; ++i)
-        if (srk.traced[i]) srk.occluded[i] = f.view.alpha_testing ? alpha.any(srk.ray[i]) : opaque.any(srk.ray[i]);
+        if (srk.traced[i])
+            srk.occluded[i] = f.view.alpha_testing
+                                  ? f.view.scene->intersect_any<SceneTrees::blocks>(srk.ray[i], alpha.keep())
+                                  : f.view.scene->intersect_any<SceneTrees::blocks>(srk.ray[i]);
     embree1_camera(f, 1, e1);
     make_shadow_rays(f, e1, 1, s1);
     embree1_shadow(f, 1, s1);

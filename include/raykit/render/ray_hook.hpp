@@ -17,9 +17,10 @@
 // camera ray (placed as PixelSampler places it) is traced by the renderer, a chunk of camera
 // rays at a time (trace_camera_ray), the hook shades it (hit or miss: hit.prim ==
 // kInvalidIndex on a miss, and `s` is then all zero with no material); what it emits is traced
-// too — shadow rays (any hit on [0, tmax]; their colour is added when nothing blocks them: at
-// once in shade_hook; the renderer defers them and traces a chunk's shadow rays as one batch,
-// DeferredShadows), continuation rays (closest hit, depth + 1) depth first — until nothing is left. A
+// too — shadow rays (any hit on [0, tmax]; their colour is added when nothing blocks them;
+// recorded and traced as one batch after the sample, or after a chunk of samples in the
+// renderer: DeferredShadows), continuation rays (closest hit, depth + 1) depth first — until
+// nothing is left. A
 // continuation ray carries the sample's generator as it was when the ray was emitted (the
 // device stores that state in the ray). Budgets as on the device: at most H::max_rays
 // continuation rays and H::max_shadow_rays (kPerLight: one per light; kPerAoSample:
@@ -97,7 +98,6 @@ struct HookTracer {
         const Tracer<kTrees, kAlpha> tr{s, f};
         return st ? tr.closest(r, st) : tr.closest(r);
     }
-    static bool any(const ShadeScene& s, TextureFilter f, const Ray& r) { return Tracer<kTrees, kAlpha>{s, f}.any(r); }
     /// Any hits of a batch (packets where the scene's trees allow).
     static void any_batch(const ShadeScene& s, TextureFilter f, std::span<const Ray> rays, std::span<std::uint8_t> blocked) {
         Tracer<kTrees, kAlpha>{s, f}.any_batch(rays, blocked);
@@ -127,16 +127,14 @@ struct PendingRay {
     std::uint64_t rng;
 };
 
-/// Reusable work space of the hooks' driver (one per thread): the pending rays of a sample.
-using PathScratch = std::vector<PendingRay>;
-
 /// Shadow rays emitted while a chunk of samples is shaded, traced afterwards as one batch
 /// (packets: a tile's shadow rays toward one light are neighbours), and every colour the
 /// samples added, in order, each either unconditional or waiting on one shadow ray. A sample's
-/// colour is then summed in the order it was added. (One difference from adding at once: a
-/// compiler that fuses multiply-adds can no longer fuse a hook's `w * x` into the running sum,
-/// so colours move in the last bit: 10,026 of 76,800 pixels by at most 6e-8 on the thesis
-/// scene at 320 x 240, Whitted, 2 spp.)
+/// colour is then summed in the order it was added. Every CPU shading goes this way (the
+/// renderer defers a chunk's samples, shade_hook one sample's), so the two give the same bits.
+/// (Against adding at once: a compiler that fuses multiply-adds can no longer fuse a hook's
+/// `w * x` into the running sum, so colours moved in the last bit: 10,026 of 76,800 pixels by
+/// at most 6e-8 on the thesis scene at 320 x 240, Whitted, 2 spp.)
 struct DeferredShadows {
     struct Add {
         vec3 c;
@@ -159,19 +157,24 @@ struct DeferredShadows {
     }
 };
 
+/// Reusable work space of the hooks' driver (one per thread): the pending continuation rays
+/// of a sample and the deferred shadow rays and colours of the samples shaded since the last
+/// trace of them.
+struct PathScratch {
+    std::vector<PendingRay> pending;
+    DeferredShadows shadows;
+};
+
 namespace detail {
 template <class H, class Q>
 SampleResult shade_sample(const ShadeScene&, const ShadeSettings&, const CameraSample&, SampleRng&,
-                          const typename H::Params&, ShadeCounters&, PathScratch&, DeferredShadows*);
+                          const typename H::Params&, ShadeCounters&, std::vector<PendingRay>&, DeferredShadows&);
 }  // namespace detail
 
 /// What a CPU hook may call while it shades one ray (see the header comment).
 class RayHookContext {
 public:
-    RAYKIT_INLINE void add_color(const vec3& c) {
-        if (deferred_) deferred_->adds.push_back({c, kInvalidIndex});
-        else color_ += c;
-    }
+    RAYKIT_INLINE void add_color(const vec3& c) { shadows_->adds.push_back({c, kInvalidIndex}); }
     void set_alpha(float a) noexcept {
         if (path_->depth == 0) alpha_ = a;
     }
@@ -187,16 +190,9 @@ public:
         ++counters_->rays.shadow;
         const unsigned slot = bounce_slot(path_->depth);
         ++counters_->bounce_rays[slot];
-        const Ray r{org, 0.0f, dir, tmax};
-        if (deferred_) {  // traced with the chunk's other shadow rays; the colour waits on it
-            deferred_->adds.push_back({c, static_cast<std::uint32_t>(deferred_->rays.size())});
-            deferred_->rays.push_back(r);
-            return true;
-        }
-        const bool blocked = detail::timed(counters_->time_stages, counters_->times.shadow_ticks,
-                                           counters_->times.bounce_ticks[slot],
-                                           [&] { return any_(*scene_, set_->filter, r); });
-        if (!blocked) color_ += c;
+        // traced later with the other deferred shadow rays; the colour waits on it
+        shadows_->adds.push_back({c, static_cast<std::uint32_t>(shadows_->rays.size())});
+        shadows_->rays.push_back(Ray{org, 0.0f, dir, tmax});
         return true;
     }
     /// Closest-hit continuation at depth + 1 with throughput `weight`; false (nothing emitted)
@@ -212,39 +208,36 @@ public:
 private:
     template <class H, class Q>
     friend SampleResult detail::shade_sample(const ShadeScene&, const ShadeSettings&, const CameraSample&, SampleRng&,
-                                             const typename H::Params&, ShadeCounters&, PathScratch&,
-                                             DeferredShadows*);
+                                             const typename H::Params&, ShadeCounters&, std::vector<PendingRay>&,
+                                             DeferredShadows&);
     const ShadeScene* scene_ = nullptr;
     const ShadeSettings* set_ = nullptr;
-    bool (*any_)(const ShadeScene&, TextureFilter, const Ray&) = nullptr;  ///< the frame's any-hit query
     const PathRay* path_ = nullptr;
     ShadeCounters* counters_ = nullptr;
-    PathScratch* pending_ = nullptr;
-    DeferredShadows* deferred_ = nullptr;  ///< set: colours and shadow rays are recorded, not summed and traced
+    std::vector<PendingRay>* pending_ = nullptr;
+    DeferredShadows* shadows_ = nullptr;  ///< where colours and shadow rays are recorded
     SampleRng rng_;
-    vec3 color_{0.0f};
     float alpha_ = 0.0f;
     unsigned steps_ = 0, rays_left_ = 0, shadows_left_ = 0;
 };
 
 namespace detail {
 
-/// shade_hook's body with the scene queries Q (a HookTracer) fixed. With `deferred`, shadow
-/// rays and colours are recorded there (the result's colour is then zero) for the caller to
-/// trace as a batch and sum (DeferredShadows::color).
+/// shade_hook's body with the scene queries Q (a HookTracer) fixed: shadow rays and colours
+/// are recorded in `shadows` (the result's colour is zero) for the caller to trace as a batch
+/// (trace_shadows) and sum (DeferredShadows::color).
 template <class H, class Q>
 SampleResult shade_sample(const ShadeScene& scene, const ShadeSettings& set, const CameraSample& camera, SampleRng& rng,
-                          const typename H::Params& params, ShadeCounters& cnt, PathScratch& pending,
-                          DeferredShadows* deferred) {
+                          const typename H::Params& params, ShadeCounters& cnt, std::vector<PendingRay>& pending,
+                          DeferredShadows& shadows) {
     static_assert(CpuRayHook<H>, "a CPU ray hook needs Params, max_rays, max_shadow_rays and a static shade()");
     pending.clear();
     RayHookContext ctx;
     ctx.scene_ = &scene;
     ctx.set_ = &set;
-    ctx.any_ = &Q::any;
     ctx.counters_ = &cnt;
     ctx.pending_ = &pending;
-    ctx.deferred_ = deferred;
+    ctx.shadows_ = &shadows;
     const unsigned per_hit_shadows = H::max_shadow_rays == kPerLight      ? unsigned(scene.lights.size())
                                      : H::max_shadow_rays == kPerAoSample ? set.ao_samples
                                                                           : unsigned(H::max_shadow_rays);
@@ -283,10 +276,21 @@ SampleResult shade_sample(const ShadeScene& scene, const ShadeSettings& set, con
         ctx.rng_.state = item.rng;
     }
     SampleResult res;
-    res.color = ctx.color_;
     res.alpha = ctx.alpha_;
     if constexpr (hook_counts_steps<H>()) res.cost = float(camera.steps);
     return res;
+}
+
+/// Traces the deferred shadow rays of `shadows` as one batch into shadows.blocked (timed into
+/// cnt's shadow stage when cnt.time_stages).
+template <class Q>
+void trace_shadows(const ShadeScene& scene, TextureFilter filter, DeferredShadows& shadows, ShadeCounters& cnt) {
+    shadows.blocked.resize(shadows.rays.size());
+    if (shadows.rays.empty()) return;
+    timed(cnt.time_stages, cnt.times.shadow_ticks, cnt.times.bounce_ticks[0], [&] {
+        Q::any_batch(scene, filter, shadows.rays, shadows.blocked);
+        return 0;
+    });
 }
 
 /// trace_camera_ray with the scene queries Q fixed, into `c` (traced from `ray`, not from the
@@ -313,9 +317,13 @@ RAYKIT_INLINE void trace_camera(const ShadeScene& scene, TextureFilter filter, c
 /// ray is counted by whoever traced it).
 template <class H>
 SampleResult shade_hook(const ShadeScene& scene, const ShadeSettings& set, const CameraSample& camera, SampleRng& rng,
-                        const typename H::Params& params, ShadeCounters& cnt, PathScratch& pending) {
+                        const typename H::Params& params, ShadeCounters& cnt, PathScratch& scratch) {
     return detail::visit_queries(scene, [&]<class Q>(Q) {
-        return detail::shade_sample<H, Q>(scene, set, camera, rng, params, cnt, pending, nullptr);
+        scratch.shadows.clear();
+        SampleResult r = detail::shade_sample<H, Q>(scene, set, camera, rng, params, cnt, scratch.pending, scratch.shadows);
+        detail::trace_shadows<Q>(scene, set.filter, scratch.shadows, cnt);
+        r.color = scratch.shadows.color(0, scratch.shadows.adds.size());
+        return r;
     });
 }
 

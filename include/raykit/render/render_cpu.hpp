@@ -236,7 +236,6 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
         std::vector<SampleRng> rngs;
         std::vector<Ray> rays;
         std::vector<Hit> hits;
-        DeferredShadows deferred;
         std::vector<float> alphas;
         std::vector<std::size_t> adds_end;
         for (std::size_t band = b0; band < b1; ++band) {
@@ -285,29 +284,23 @@ Image render_samples(const ShadeScene& scene, const Camera& cam, const RenderSet
                         ++c.bounce_rays[0];
                     }
                 }
-                // shaded sample by sample, their shadow rays deferred and traced as one batch
-                deferred.clear();
+                // shaded sample by sample, the chunk's shadow rays deferred and traced as one batch
+                DeferredShadows& shadows = scratch.shadows;
+                shadows.clear();
                 alphas.resize(samples.size());
                 adds_end.resize(samples.size());
                 for (k = 0; k < samples.size(); ++k) {  // only the alpha is kept: the colour is deferred
                     alphas[k] = shade_sample<Hook, Q>(scene, shade_set, samples[k], rngs[k], params,
-                                                      row_counters[samples[k].pixel / W], scratch, &deferred)
+                                                      row_counters[samples[k].pixel / W], scratch.pending, shadows)
                                     .alpha;
-                    adds_end[k] = deferred.adds.size();
+                    adds_end[k] = shadows.adds.size();
                 }
-                if (!deferred.rays.empty()) {
-                    deferred.blocked.resize(deferred.rays.size());
-                    ShadeCounters& cnt = row_counters[y0];
-                    timed(set.time_stages, cnt.times.shadow_ticks, cnt.times.bounce_ticks[0], [&] {
-                        Q::any_batch(scene, shade_set.filter, deferred.rays, deferred.blocked);
-                        return 0;
-                    });
-                }
+                trace_shadows<Q>(scene, shade_set.filter, shadows, row_counters[y0]);
                 for (k = 0; k < samples.size(); k += spp) {  // pixel by pixel, samples in order
                     vec3 sum(0.0f);
                     float cover = 0.0f;
                     for (unsigned s = 0; s < spp; ++s) {
-                        sum += deferred.color(k + s == 0 ? 0 : adds_end[k + s - 1], adds_end[k + s]);
+                        sum += shadows.color(k + s == 0 ? 0 : adds_end[k + s - 1], adds_end[k + s]);
                         cover += alphas[k + s];
                     }
                     const std::uint32_t pixel = samples[k].pixel;

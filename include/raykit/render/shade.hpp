@@ -304,7 +304,8 @@ inline bool cut_out(const ShadeScene& s, TextureFilter f, std::uint32_t inst, st
     return m.map_kd->sample_alpha(interpolate_uv(s.mesh_of(inst), prim, u, v), f) < 0.5f;
 }
 
-/// The shaders' two queries: Scene queries over the chosen object trees, alpha cut-outs
+/// The shaders' queries (closest hits of a ray or a batch, any hits of a batch: shadow rays are
+/// always batched): Scene queries over the chosen object trees, alpha cut-outs
 /// filtered inside the walk when kAlpha.
 template <SceneTrees kTrees, bool kAlpha>
 struct Tracer {
@@ -323,7 +324,6 @@ struct Tracer {
     Hit closest(const Ray& ray, Stats stats = nullptr) const {
         return s.scene->template intersect_closest<kTrees>(ray, keep(), stats);
     }
-    bool any(const Ray& ray) const { return s.scene->template intersect_any<kTrees>(ray, keep()); }
     void closest_batch(std::span<const Ray> rays, std::span<Hit> hits) const {
         s.scene->template intersect_closest<kTrees>(rays, hits, keep());
     }
