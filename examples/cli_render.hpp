@@ -224,6 +224,20 @@ void add_threads_option(CLI::App& app, T& threads) {
         ->transform(count_in(0, raykit::kMaxThreads));
 }
 
+/// --builder, the same on every command that builds a tree.
+inline void add_builder_option(CLI::App& app, std::string& builder) {
+    app.add_option("--builder", builder, "BVH builder: sah (binned SAH, default), pairwise, sortaxis, ploc")
+        ->type_name("")
+        ->check(CLI::IsMember({"sah", "pairwise", "sortaxis", "ploc"}));
+}
+/// --leaf-size (the largest leaf), with the command's own default in `help`; returns the option.
+template <class L>
+CLI::Option* add_leaf_size_option(CLI::App& app, L& leaf_size, const std::string& help) {
+    return app.add_option("--leaf-size", leaf_size, help)
+        ->type_name("N")
+        ->transform(count_in(1, std::numeric_limits<unsigned>::max()));
+}
+
 inline void add_render_options(CLI::App& app, RenderArgs& a) {
     namespace cr = raykit::detail::cli_render;
     using MOP = CLI::MultiOptionPolicy;
@@ -285,12 +299,8 @@ inline void add_render_options(CLI::App& app, RenderArgs& a) {
     app.add_option("--device", a.device, "renderer: cpu (default) or cl (the OpenCL device, the CPU's image)")
         ->type_name("")
         ->check(CLI::IsMember({"cpu", "cl"}));
-    app.add_option("--builder", a.builder, "BVH builder: sah (default), pairwise, sortaxis, ploc")
-        ->type_name("")
-        ->check(CLI::IsMember({"sah", "pairwise", "sortaxis", "ploc"}));
-    app.add_option("--leaf-size", a.leaf_size, "largest BVH leaf, >= 1 (default 12; leaf cost in blocks of 4)")
-        ->type_name("N")
-        ->transform(count_in(1, std::numeric_limits<unsigned>::max()));
+    add_builder_option(app, a.builder);
+    add_leaf_size_option(app, a.leaf_size, "largest BVH leaf, >= 1 (default 12; leaf cost in blocks of 4)");
     app.add_option("--pfm", a.pfm, "also write linear float RGB (PFM)")->type_name("OUT.pfm");
     app.add_flag("--alpha", a.alpha, "write coverage as PNG alpha");
     app.add_flag("--profile", a.profile, "split the render time into trace / shadow / shade thread time");

@@ -87,12 +87,8 @@ struct TreeArgs {
 
 void add_tree_options(CLI::App& app, TreeArgs& t) {
     t.app = &app;
-    app.add_option("--builder", t.builder, "BVH builder: sah (binned SAH, default), pairwise, sortaxis, ploc")
-        ->type_name("")
-        ->check(CLI::IsMember({"sah", "pairwise", "sortaxis", "ploc"}));
-    app.add_option("--leaf-size", t.leaf_size, "largest leaf (primitives), >= 1 (default 8)")
-        ->type_name("N")
-        ->transform(count_in(1, std::numeric_limits<unsigned>::max()));
+    raykit_cli::add_builder_option(app, t.builder);
+    raykit_cli::add_leaf_size_option(app, t.leaf_size, "largest leaf (primitives), >= 1 (default 8)");
     app.add_option("--leaf", t.leaf_size, "deprecated name of --leaf-size")
         ->group(raykit_cli::Formatter::kDeprecated)  // not in --help
         ->transform(count_in(1, std::numeric_limits<unsigned>::max()));
