@@ -273,44 +273,13 @@ std::size_t batch_differences(const std::vector<Hit>& batch, const std::vector<s
     return bad;
 }
 
-/// Camera rays, random rays (mixed octants in every packet), rays with narrowed intervals,
-/// axis-parallel and zero-component directions, and rays aimed at vertices: the cases where a
-/// packet's lanes disagree with each other.
-std::vector<Ray> batch_test_rays(const Mesh& m, std::size_t n_random, std::uint64_t seed) {
-    AABB box;
-    for (const vec3& p : m.positions) box.grow(p);
-    std::vector<Ray> rays = raykit::test::random_rays(m, n_random, seed);
-    const Camera cam = frame_scene(box, 48, 40);
-    for (const Ray& r : camera_rays(cam)) rays.push_back(r);
-    const Camera centre = camera_looking_at(box, 33, 17, vec3(0.0f, 0.0f, 1.0f), 30.0f);  // tiles straddle octants
-    for (const Ray& r : camera_rays(centre, 0.3f, 0.7f)) rays.push_back(r);
-    std::mt19937_64 rng(seed + 1);
-    std::uniform_real_distribution<float> U(0.0f, 1.0f);
-    const vec3 c = box.center(), e = box.extent();
-    for (int i = 0; i < 200; ++i) {
-        Ray r;
-        r.org = c + (vec3(U(rng), U(rng), U(rng)) - 0.5f) * e * 1.5f;
-        const int axis = i % 3;
-        r.dir = vec3(0.0f);
-        r.dir[axis] = i % 2 ? 1.0f : -1.0f;
-        if (i % 5 == 0) r.dir[(axis + 1) % 3] = -0.0f;
-        if (i % 7 == 0) {
-            r.tmin = 0.25f * e[axis];
-            r.tmax = 0.75f * e[axis];
-        }
-        rays.push_back(r);
-    }
-    for (std::size_t i = 0; i < rays.size(); i += 13) rays[i].tmax = 0.5f * glm::length(e) / glm::length(rays[i].dir);
-    return rays;
-}
-
 }  // namespace
 
 TEST(Batch, BlockTreePacketsEqualSingleRaysBitForBit) {
     const Mesh m = make_bumpy_torus(20000);
     const BlockBvh8 b = BlockBvh8::build(m);
     const BlockBvh blocks4 = BlockBvh::build(m, build_bvh(MeshView(m), BuildOptions{}));
-    const std::vector<Ray> rays = batch_test_rays(m, 3001, 21);
+    const std::vector<Ray> rays = raykit::test::batch_test_rays(m, 3001, 21);
     std::vector<Hit> single(rays.size());
     std::vector<bool> single_any(rays.size());
     std::size_t hits = 0;
@@ -342,7 +311,7 @@ TEST(Batch, LeafFilterAppliesToEveryLane) {
     const Mesh m = make_bumpy_torus(8000);
     const BlockBvh8 b = BlockBvh8::build(m);
     const auto keep = [](std::uint32_t p, float u, float) { return p % 3 != 0 && u < 0.8f; };
-    const std::vector<Ray> rays = batch_test_rays(m, 1500, 4);
+    const std::vector<Ray> rays = raykit::test::batch_test_rays(m, 1500, 4);
     std::vector<Hit> batch(rays.size());
     std::vector<std::uint8_t> any(rays.size());
     intersect_closest(b, rays, batch, 1, keep);
@@ -375,7 +344,7 @@ TEST(Batch, SceneBatchesEqualSingleRays) {
         }
         s.update_top_level();
         const auto [w, origin] = s.world_mesh();
-        const std::vector<Ray> rays = batch_test_rays(w, 2000, 8 + std::uint64_t(instances));
+        const std::vector<Ray> rays = raykit::test::batch_test_rays(w, 2000, 8 + std::uint64_t(instances));
         std::vector<Hit> batch(rays.size()), single(rays.size());
         std::vector<std::uint8_t> any(rays.size());
         std::vector<bool> single_any(rays.size());

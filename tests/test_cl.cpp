@@ -273,9 +273,9 @@ TEST(ClLayout, DeviceAgreesWithHost) {
     EXPECT_TRUE(diff.empty());
     std::printf("[ info ] %zu layout numbers checked on the device\n", rcl::layout_entries().size());
     const rcl::HostFloatConfig f = rcl::host_float_config();
-    std::printf("[ info ] host Watertight rounding (RAYKIT_FAST_FMA %d): A[kx]-sx*A[kz] %s, t numerator %s; device "
+    std::printf("[ info ] host Watertight rounding (RAYKIT_FMA %d): A[kx]-sx*A[kz] %s, t numerator %s; device "
                 "edge functions in %s\n",
-                RAYKIT_FAST_FMA, f.fuse_msub ? "fused" : "unfused", f.fuse_tnum ? "fused" : "unfused",
+                RAYKIT_FMA, f.fuse_msub ? "fused" : "unfused", f.fuse_tnum ? "fused" : "unfused",
                 dev.info().fp64 ? "double (cl_khr_fp64)" : "float, FP_CONTRACT OFF");
 }
 

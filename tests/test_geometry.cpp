@@ -451,7 +451,7 @@ namespace {
 
 /// Watertight::intersect written out with a chosen rounding of its two multiply-adds
 /// (volatile keeps the compiler from fusing the unfused forms): the oracle for the rounding
-/// the library claims through RAYKIT_FAST_FMA, which the OpenCL device is told to copy.
+/// the library claims through RAYKIT_FMA, which the OpenCL device is told to copy.
 bool watertight_rounded(const Ray& r, const vec3& p0, const vec3& p1, const vec3& p2, bool fuse, TriHit& out) {
     const Watertight::RayData d = Watertight::prepare(r);
     const vec3 A = p0 - d.org, B = p1 - d.org, C = p2 - d.org;
@@ -487,10 +487,10 @@ bool watertight_rounded(const Ray& r, const vec3& p0, const vec3& p1, const vec3
 
 }  // namespace
 
-// RAYKIT_FAST_FMA says whether Watertight fuses its two multiply-adds; the device copies that
+// RAYKIT_FMA says whether Watertight fuses its two multiply-adds; the device copies that
 // choice (cl/layout.hpp host_float_config) to return the CPU's t, u, v bit for bit. This checks
 // the claim against both roundings written out, on rays where the two differ.
-TEST(Watertight, RoundsAsRaykitFastFmaSays) {
+TEST(Watertight, RoundsAsRaykitFmaSays) {
     std::mt19937_64 rng(7);
     std::uniform_real_distribution<float> U(-1.0f, 1.0f);
     auto bits = [](float x) { return std::bit_cast<std::uint32_t>(x); };
@@ -510,13 +510,13 @@ TEST(Watertight, RoundsAsRaykitFastFmaSays) {
         };
         if (same(hf, fused, hp, plain)) continue;  // both roundings agree: says nothing
         ++decisive;
-        const bool claim = RAYKIT_FAST_FMA != 0;
+        const bool claim = RAYKIT_FMA != 0;
         agree_claim += same(hl, lib, claim ? hf : hp, claim ? fused : plain);
         agree_other += same(hl, lib, claim ? hp : hf, claim ? plain : fused);
     }
-    std::printf("[ info ] RAYKIT_FAST_FMA %d: %d rays where the roundings differ; library agrees with it on %d, "
+    std::printf("[ info ] RAYKIT_FMA %d: %d rays where the roundings differ; library agrees with it on %d, "
                 "with the other on %d\n",
-                RAYKIT_FAST_FMA, decisive, agree_claim, agree_other);
+                RAYKIT_FMA, decisive, agree_claim, agree_other);
     ASSERT_GT(decisive, 50);
     EXPECT_EQ(agree_claim, decisive);
     EXPECT_EQ(agree_other, 0);

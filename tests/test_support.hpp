@@ -35,4 +35,35 @@ inline std::vector<Ray> random_rays(const Mesh& m, std::size_t n, std::uint64_t 
     return rays;
 }
 
+/// Camera rays, random rays (mixed octants in every packet), rays with narrowed intervals,
+/// axis-parallel and zero-component directions, and rays aimed at vertices: the cases where a
+/// packet's lanes disagree with each other.
+inline std::vector<Ray> batch_test_rays(const Mesh& m, std::size_t n_random, std::uint64_t seed) {
+    AABB box;
+    for (const vec3& p : m.positions) box.grow(p);
+    std::vector<Ray> rays = random_rays(m, n_random, seed);
+    const Camera cam = frame_scene(box, 48, 40);
+    for (const Ray& r : camera_rays(cam)) rays.push_back(r);
+    const Camera centre = camera_looking_at(box, 33, 17, vec3(0.0f, 0.0f, 1.0f), 30.0f);  // tiles straddle octants
+    for (const Ray& r : camera_rays(centre, 0.3f, 0.7f)) rays.push_back(r);
+    std::mt19937_64 rng(seed + 1);
+    std::uniform_real_distribution<float> U(0.0f, 1.0f);
+    const vec3 c = box.center(), e = box.extent();
+    for (int i = 0; i < 200; ++i) {
+        Ray r;
+        r.org = c + (vec3(U(rng), U(rng), U(rng)) - 0.5f) * e * 1.5f;
+        const int axis = i % 3;
+        r.dir = vec3(0.0f);
+        r.dir[axis] = i % 2 ? 1.0f : -1.0f;
+        if (i % 5 == 0) r.dir[(axis + 1) % 3] = -0.0f;
+        if (i % 7 == 0) {
+            r.tmin = 0.25f * e[axis];
+            r.tmax = 0.75f * e[axis];
+        }
+        rays.push_back(r);
+    }
+    for (std::size_t i = 0; i < rays.size(); i += 13) rays[i].tmax = 0.5f * glm::length(e) / glm::length(rays[i].dir);
+    return rays;
+}
+
 }  // namespace raykit::test

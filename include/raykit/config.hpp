@@ -27,13 +27,14 @@ static_assert(RAYKIT_BVH_MAX_DEPTH >= 40, "RAYKIT_BVH_MAX_DEPTH must be at least
 #define RAYKIT_RESTRICT
 #endif
 
-/// 1 when the target has a fused multiply-add instruction (x86 FMA3, or any
-/// target whose compiler says fmaf is fast, e.g. AArch64): raykit's
-/// watertight test then fuses its two multiply-adds explicitly (std::fma),
-/// else it rounds each product. Either way the choice is the code's, not the
-/// optimizer's, so answers do not change with -O levels or -ffp-contract.
-#if defined(__FMA__) || defined(__FP_FAST_FMAF) || defined(__ARM_FEATURE_FMA)
-#define RAYKIT_FAST_FMA 1
-#else
-#define RAYKIT_FAST_FMA 0
+/// The one FMA rule: 1 (the default) makes raykit's watertight test fuse its two multiply-adds
+/// (one rounding each) on every target, every instruction-set level the traversals dispatch to
+/// (raykit/simd/isa.hpp) and the OpenCL device, so answers do not depend on the compiler's flags,
+/// -O level, -ffp-contract or the CPU: one fused instruction where the CPU has FMA (every x86-64
+/// CPU since 2013, AArch64, GPUs), std::fma's exact software form where it has none.
+/// Overridable: 0 rounds each product on its own instead, for targets without FMA that would
+/// rather be fast than agree (answers may then differ from the device's and other builds' in
+/// the last bits of t, u, v).
+#ifndef RAYKIT_FMA
+#define RAYKIT_FMA 1
 #endif

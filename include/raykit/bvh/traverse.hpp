@@ -13,7 +13,15 @@
 // float& tmax)`: it intersects prim_ids[first_slot .. +count), shrinks tmax on
 // closest hits, and returns true when it found a hit; with AnyHit = true the
 // walk stops at the first leaf that returns true.
-#pragma once
+//
+// The walk is compiled once per instruction-set level (raykit/simd/dispatch.hpp): the part of
+// this header below RAYKIT_ISA_PASS is its per-level part; raykit::traverse calls the level the
+// CPU runs.
+#ifndef RAYKIT_ISA_PASS
+#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
+#endif
+#ifndef RAYKIT_BVH_TRAVERSE_HPP
+#define RAYKIT_BVH_TRAVERSE_HPP
 
 #include <cstddef>
 #include <cstdint>
@@ -37,6 +45,13 @@ struct TraversalStats {
     std::uint32_t nodes = 0;   ///< inner nodes visited
     std::uint32_t leaves = 0;  ///< leaves visited
 };
+
+}  // namespace raykit
+
+#endif  // RAYKIT_BVH_TRAVERSE_HPP
+
+#ifdef RAYKIT_ISA_PASS
+namespace raykit::RAYKIT_ISA_NS {
 
 template <class Mode = ClosestHit, class LeafFn, class Stats = std::nullptr_t>
 bool traverse(const Bvh& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
@@ -108,4 +123,5 @@ bool traverse(const Bvh& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats 
     }
 }
 
-}  // namespace raykit
+}  // namespace raykit::RAYKIT_ISA_NS
+#endif  // RAYKIT_ISA_PASS

@@ -1,6 +1,6 @@
 // raykit/bvh/traverse_packet.hpp — a packet of rays walking a WideBvh / WideBvh8 together.
 //
-// The coherent-ray form of traverse<Mode> (bvh/traverse_wide.hpp): up to kPacketWidth rays
+// The coherent-ray form of traverse<Mode> (bvh/traverse_wide.hpp): up to kPacketLanes rays
 // (16 with AVX-512, else 8) share one walk. At a node each child box is slab-tested against
 // every ray of the packet in one vector operation, the node is fetched once for all of them,
 // and a child is entered by the rays whose own test enters it (a lane mask travels with every
@@ -25,7 +25,15 @@
 // parent node, still in cache), so lanes that found nearer hits drop out before its leaf.
 //
 // Stack: as the single-ray walk, at most W − 1 entries per wide level.
-#pragma once
+//
+// The walk is compiled once per instruction-set level (raykit/simd/dispatch.hpp): the part of
+// this header below RAYKIT_ISA_PASS is its per-level part. A level walks kPacketLanes rays at
+// once (16 with AVX-512, else 8); callers hand out kPacketWidth (16) and the dispatch splits.
+#ifndef RAYKIT_ISA_PASS
+#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
+#endif
+#ifndef RAYKIT_BVH_TRAVERSE_PACKET_HPP
+#define RAYKIT_BVH_TRAVERSE_PACKET_HPP
 
 #include <bit>
 #include <cmath>
@@ -35,18 +43,39 @@
 #include <type_traits>
 
 #include "raykit/bvh/traverse_wide.hpp"
-
-#if defined(__AVX512F__) && !defined(RAYKIT_NO_SIMD)
-#include <immintrin.h>
-#define RAYKIT_PACKET_AVX512 1
-#else
-#define RAYKIT_PACKET_AVX512 0
-#endif
+#include "raykit/simd/isa.hpp"
 
 namespace raykit {
 
-/// Rays per packet: 16 where the target has AVX-512 (one register per lane quantity), else 8.
-inline constexpr int kPacketWidth = RAYKIT_PACKET_AVX512 ? 16 : 8;
+/// Rays per packet a batch hands to closest_hit_packet / any_hit_packet: the widest any level
+/// walks at once (AVX-512's 16; levels without it walk two packets of 8).
+inline constexpr int kPacketWidth = 16;
+
+/// True when rays[0, n) point into one octant (the signs of their directions agree), which a
+/// packet walk needs: the signs pick the near planes for all lanes at once. It is also the test
+/// for a coherent packet: rays into several octants (random rays, ambient-occlusion rays from one
+/// point) share few nodes, and walked as packets they ran at 0.5x their single-ray speed
+/// (bench_trace, bunny random rays, 3.4 against 6.2 Mrays/s), so callers walk them one by one.
+inline bool one_octant(const Ray* rays, unsigned n) noexcept {
+    const auto signs = [](const Ray& r) {
+        return unsigned(std::signbit(r.dir.x)) | unsigned(std::signbit(r.dir.y)) << 1 |
+               unsigned(std::signbit(r.dir.z)) << 2;
+    };
+    const unsigned s0 = signs(rays[0]);
+    for (unsigned k = 1; k < n; ++k)
+        if (signs(rays[k]) != s0) return false;
+    return true;
+}
+
+}  // namespace raykit
+
+#endif  // RAYKIT_BVH_TRAVERSE_PACKET_HPP
+
+#ifdef RAYKIT_ISA_PASS
+namespace raykit::RAYKIT_ISA_NS {
+
+/// Rays one packet walk takes at this level: 16 with AVX-512 (one register per lane quantity), else 8.
+inline constexpr int kPacketLanes = RAYKIT_ISA_AVX512 ? 16 : 8;
 
 namespace detail {
 
@@ -66,10 +95,10 @@ struct PacketLanes<16> {
 /// One bit per lane of a comparison result (lanes are 0 or −1).
 template <int N>
 RAYKIT_INLINE unsigned lane_bits(const typename PacketLanes<N>::i& m) noexcept {
-#if RAYKIT_PACKET_AVX512
+#if RAYKIT_ISA_AVX512
     if constexpr (N == 16) return _mm512_cmplt_epi32_mask(reinterpret_cast<__m512i>(m), _mm512_setzero_si512());
 #endif
-#if RAYKIT_WIDE_AVX
+#if RAYKIT_ISA_AVX
     if constexpr (N == 8) return static_cast<unsigned>(_mm256_movemask_ps(reinterpret_cast<__m256>(m)));
 #endif
     unsigned b = 0;
@@ -79,25 +108,9 @@ RAYKIT_INLINE unsigned lane_bits(const typename PacketLanes<N>::i& m) noexcept {
 
 }  // namespace detail
 
-/// True when rays[0, n) point into one octant (the signs of their directions agree), which a
-/// packet walk needs: the signs pick the near planes for all lanes at once. It is also the test
-/// for a coherent packet: rays into several octants (random rays, ambient-occlusion rays from one
-/// point) share few nodes, and walked as packets they ran at 0.5x their single-ray speed
-/// (bench_trace, bunny random rays, 3.4 against 6.2 Mrays/s), so callers walk them one by one.
-inline bool one_octant(const Ray* rays, unsigned n) noexcept {
-    const auto signs = [](const Ray& r) {
-        return unsigned(std::signbit(r.dir.x)) | unsigned(std::signbit(r.dir.y)) << 1 |
-               unsigned(std::signbit(r.dir.z)) << 2;
-    };
-    const unsigned s0 = signs(rays[0]);
-    for (unsigned k = 1; k < n; ++k)
-        if (signs(rays[k]) != s0) return false;
-    return true;
-}
-
 /// The per-lane state of a packet walk: origins, reciprocal directions, intervals, for rays of
 /// one octant (one_octant). Lanes past the rays given hold a copy of lane 0.
-template <int N = kPacketWidth>
+template <int N = kPacketLanes>
 struct RayPacket {
     using vf = typename detail::PacketLanes<N>::f;
     static constexpr int kLanes = N;
@@ -169,7 +182,7 @@ RAYKIT_INLINE unsigned packet_enter_child(const RayPacket<N>& p, const WideNodeT
 /// found a hit, which then leave the walk; closest-hit: 0, the leaf shrinks p.tmax instead).
 /// Returns the lanes finished.
 template <class Mode = ClosestHit, int W, int N, class LeafFn>
-RAYKIT_INLINE unsigned traverse_packet(const WideBvhT<W>& bvh, const RayPacket<N>& p, unsigned lanes, LeafFn&& leaf) {
+unsigned traverse_packet(const WideBvhT<W>& bvh, const RayPacket<N>& p, unsigned lanes, LeafFn&& leaf) {
     if (bvh.nodes.empty() || lanes == 0) return 0;
     const WideNodeT<W>* RAYKIT_RESTRICT nodes = bvh.nodes.data();
     // the root box first, as the single-ray walk tests it
@@ -257,4 +270,5 @@ RAYKIT_INLINE unsigned traverse_packet(const WideBvhT<W>& bvh, const RayPacket<N
     }
 }
 
-}  // namespace raykit
+}  // namespace raykit::RAYKIT_ISA_NS
+#endif  // RAYKIT_ISA_PASS

@@ -20,7 +20,15 @@
 // Stack: at most W − 1 entries per wide level, and a wide tree is no deeper
 // than its binary tree (≤ RAYKIT_BVH_MAX_DEPTH for raykit's builders); a deeper
 // tree from elsewhere makes traverse throw instead of overflowing.
-#pragma once
+//
+// WideSlabRay and the walk are compiled once per instruction-set level
+// (raykit/simd/dispatch.hpp): the part of this header below RAYKIT_ISA_PASS is
+// their per-level part; raykit::traverse calls the level the CPU runs.
+#ifndef RAYKIT_ISA_PASS
+#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
+#endif
+#ifndef RAYKIT_BVH_TRAVERSE_WIDE_HPP
+#define RAYKIT_BVH_TRAVERSE_WIDE_HPP
 
 #include <bit>
 #include <cstddef>
@@ -31,21 +39,12 @@
 
 #include "raykit/bvh/traverse.hpp"
 #include "raykit/bvh/wide.hpp"
+#include "raykit/simd/isa.hpp"
 
-#if (defined(__SSE2__) || defined(_M_X64)) && !defined(RAYKIT_NO_SIMD)
-#include <emmintrin.h>
-#define RAYKIT_WIDE_SSE 1
-#else
-#define RAYKIT_WIDE_SSE 0
-#endif
-#if defined(__AVX__) && !defined(RAYKIT_NO_SIMD)
-#include <immintrin.h>
-#define RAYKIT_WIDE_AVX 1
-#else
-#define RAYKIT_WIDE_AVX 0
-#endif
+#endif  // RAYKIT_BVH_TRAVERSE_WIDE_HPP
 
-namespace raykit {
+#ifdef RAYKIT_ISA_PASS
+namespace raykit::RAYKIT_ISA_NS {
 
 /// Per-ray state of the wide slab test. test() uses SSE (4 lanes) / AVX (8
 /// lanes) where the target has them; test_scalar() is the plain-C++ reference
@@ -53,10 +52,10 @@ namespace raykit {
 struct WideSlabRay {
     int near_row[3], far_row[3];  ///< WideNode::planes rows of the near/far planes per axis
     float org[3], inv[3];
-#if RAYKIT_WIDE_SSE
+#if RAYKIT_ISA_SSE2
     __m128 org4[3], inv4[3];
 #endif
-#if RAYKIT_WIDE_AVX
+#if RAYKIT_ISA_AVX
     __m256 org8[3], inv8[3];
 #endif
 
@@ -69,11 +68,11 @@ struct WideSlabRay {
             far_row[a] = 2 * a + 1 - ri.octant[a];
             org[a] = o[a];
             inv[a] = v[a];
-#if RAYKIT_WIDE_SSE
+#if RAYKIT_ISA_SSE2
             org4[a] = _mm_set1_ps(o[a]);
             inv4[a] = _mm_set1_ps(v[a]);
 #endif
-#if RAYKIT_WIDE_AVX
+#if RAYKIT_ISA_AVX
             org8[a] = _mm256_set1_ps(o[a]);
             inv8[a] = _mm256_set1_ps(v[a]);
 #endif
@@ -83,7 +82,7 @@ struct WideSlabRay {
     /// Tests the child boxes of `n` against [tmin, tmax]; returns a bit per
     /// child entered and writes the entry distances to t[0..W) (32-byte aligned).
     RAYKIT_INLINE unsigned test(const WideNode8& n, float tmin, float tmax, float* RAYKIT_RESTRICT t) const noexcept {
-#if RAYKIT_WIDE_AVX
+#if RAYKIT_ISA_AVX
         const __m256 tnx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.planes[near_row[0]]), org8[0]), inv8[0]);
         const __m256 tny = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.planes[near_row[1]]), org8[1]), inv8[1]);
         const __m256 tnz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.planes[near_row[2]]), org8[2]), inv8[2]);
@@ -102,7 +101,7 @@ struct WideSlabRay {
     }
 
     RAYKIT_INLINE unsigned test(const WideNode& n, float tmin, float tmax, float* RAYKIT_RESTRICT t) const noexcept {
-#if RAYKIT_WIDE_SSE
+#if RAYKIT_ISA_SSE2
         const __m128 tnx = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.planes[near_row[0]]), org4[0]), inv4[0]);
         const __m128 tny = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.planes[near_row[1]]), org4[1]), inv4[1]);
         const __m128 tnz = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.planes[near_row[2]]), org4[2]), inv4[2]);
@@ -152,7 +151,7 @@ struct WideSlabRay {
 };
 
 template <class Mode = ClosestHit, int W, class LeafFn, class Stats = std::nullptr_t>
-RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
+bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
     if (bvh.nodes.empty()) return false;
     const WideNodeT<W>* RAYKIT_RESTRICT nodes = bvh.nodes.data();
     const WideSlabRay wr(ray);
@@ -252,4 +251,5 @@ RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax,
     }
 }
 
-}  // namespace raykit
+}  // namespace raykit::RAYKIT_ISA_NS
+#endif  // RAYKIT_ISA_PASS

@@ -178,13 +178,13 @@ inline std::vector<LayoutEntry> layout_entries() {
 /// How this build of the CPU code rounds the two multiply-adds of
 /// Watertight::intersect (intersect/triangle.hpp): A[kx] − sx·A[kz] (`msub`) and
 /// U·Az + V·Bz + W·Cz (`tnum`). The CPU code fuses both explicitly exactly when
-/// RAYKIT_FAST_FMA is 1 (config.hpp), so this is known at compile time; the device
+/// RAYKIT_FMA is 1 (config.hpp, the default), so this is known at compile time; the device
 /// is told the same through config_source() and returns the same t, u, v bit for
 /// bit. (A run-time probe of the rounding used to stand here; it is now the test
-/// that checks this constant, test_geometry's WatertightRoundsAsRaykitFastFmaSays.)
+/// that checks this constant, test_geometry's Watertight.RoundsAsRaykitFmaSays.)
 struct HostFloatConfig {
-    bool fuse_msub = RAYKIT_FAST_FMA != 0;
-    bool fuse_tnum = RAYKIT_FAST_FMA != 0;
+    bool fuse_msub = RAYKIT_FMA != 0;
+    bool fuse_tnum = RAYKIT_FMA != 0;
 };
 
 /// The rounding of this build's Watertight::intersect (see HostFloatConfig).

@@ -11,7 +11,7 @@
 // triangles are read from 4-triangle blocks in leaf order (cl/device_tree.hpp). On a device with cl_khr_fp64 the edge
 // functions are evaluated in double like the CPU's; the two expressions a
 // compiler may fuse into fma are fused on the device exactly when the host
-// build fuses them (RAYKIT_FAST_FMA, cl/layout.hpp host_float_config()); division is
+// build fuses them (RAYKIT_FMA, cl/layout.hpp host_float_config()); division is
 // correctly rounded where the device supports
 // -cl-fp32-correctly-rounded-divide-sqrt. So on such devices (PoCL's CPU
 // device is one) hits equal the CPU's bit for bit (t, u, v, triangle).

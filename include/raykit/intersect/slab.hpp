@@ -8,23 +8,18 @@
 // never missed through rounding by a ray that hits a triangle inside it; tmax
 // is widened the same way, so a box whose entry equals the current closest hit
 // (a tie) is still visited.
-#pragma once
+//
+// SlabRay is compiled once per instruction-set level (raykit/simd/dispatch.hpp): the part of this
+// header below RAYKIT_ISA_PASS is its per-level part.
+#ifndef RAYKIT_ISA_PASS
+#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
+#endif
+#ifndef RAYKIT_INTERSECT_SLAB_HPP
+#define RAYKIT_INTERSECT_SLAB_HPP
 
 #include "raykit/math/aabb.hpp"
 #include "raykit/math/ray.hpp"
-
-#if defined(__SSE4_1__) && !defined(RAYKIT_NO_SIMD)
-#include <smmintrin.h>
-#define RAYKIT_SLAB_SSE 1
-#else
-#define RAYKIT_SLAB_SSE 0
-#endif
-#if defined(__AVX__) && !defined(RAYKIT_NO_SIMD)
-#include <immintrin.h>
-#define RAYKIT_SLAB_AVX 1
-#else
-#define RAYKIT_SLAB_AVX 0
-#endif
+#include "raykit/simd/isa.hpp"
 
 namespace raykit {
 
@@ -54,6 +49,13 @@ RAYKIT_INLINE bool slab_test(const AABB& box, const Ray& ray, const RayInv& ri, 
     return slab_test(&box.min.x, &box.max.x, ray.org, ri, ray.tmin, ray.tmax, tentry);
 }
 
+}  // namespace raykit
+
+#endif  // RAYKIT_INTERSECT_SLAB_HPP
+
+#ifdef RAYKIT_ISA_PASS
+namespace raykit::RAYKIT_ISA_NS {
+
 /// Per-ray state of the slab test, prepared once per ray. With SSE4.1 the
 /// three axes are tested in one 4-wide operation (lane 3 carries tmin/tmax);
 /// the result is identical to slab_test() above, including the NaN rules
@@ -62,20 +64,20 @@ RAYKIT_INLINE bool slab_test(const AABB& box, const Ray& ray, const RayInv& ri, 
 struct SlabRay {
     vec3 org;
     RayInv ri;
-#if RAYKIT_SLAB_SSE
+#if RAYKIT_ISA_SSE41
     __m128 org4, inv4, sign4;
 #endif
-#if RAYKIT_SLAB_AVX
+#if RAYKIT_ISA_AVX
     __m256 org8, inv8, sign8;
 #endif
     explicit SlabRay(const Ray& r) noexcept : org(r.org), ri(r.dir) {
-#if RAYKIT_SLAB_SSE
+#if RAYKIT_ISA_SSE41
         org4 = _mm_setr_ps(org.x, org.y, org.z, 0.0f);
         inv4 = _mm_setr_ps(ri.inv.x, ri.inv.y, ri.inv.z, 0.0f);
         sign4 = _mm_castsi128_ps(_mm_setr_epi32(ri.octant[0] ? -1 : 0, ri.octant[1] ? -1 : 0,
                                                 ri.octant[2] ? -1 : 0, 0));
 #endif
-#if RAYKIT_SLAB_AVX
+#if RAYKIT_ISA_AVX
         org8 = _mm256_set_m128(org4, org4);
         inv8 = _mm256_set_m128(inv4, inv4);
         sign8 = _mm256_set_m128(sign4, sign4);
@@ -87,7 +89,7 @@ struct SlabRay {
     /// of the first, bit 1 for the second, and their entry distances.
     RAYKIT_INLINE unsigned test_pair(const AABB& first, const AABB& second, float tmin, float tmax, float& t0,
                                      float& t1) const noexcept {
-#if RAYKIT_SLAB_AVX
+#if RAYKIT_ISA_AVX
         const float* a = &first.min.x;
         const float* b = &second.min.x;
         const __m256 zero = _mm256_setzero_ps();
@@ -118,7 +120,7 @@ struct SlabRay {
     /// Slab test of a node's box: `box` points at min.xyz followed by max.xyz
     /// and at least 4 more readable bytes (a Node's index field).
     RAYKIT_INLINE bool test(const AABB& box, float tmin, float tmax, float& tentry) const noexcept {
-#if RAYKIT_SLAB_SSE
+#if RAYKIT_ISA_SSE41
         // Lane 3 of `hi` holds the bits of the next field (an integer, i.e. a
         // denormal float): zero it before any arithmetic touches it.
         const __m128 zero = _mm_setzero_ps();
@@ -143,4 +145,5 @@ struct SlabRay {
     }
 };
 
-}  // namespace raykit
+}  // namespace raykit::RAYKIT_ISA_NS
+#endif  // RAYKIT_ISA_PASS

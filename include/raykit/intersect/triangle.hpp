@@ -41,21 +41,20 @@ struct TriHit {
 };
 
 struct Watertight {
-    /// The two multiply-adds of the test, rounded the same way at every
-    /// optimization level: fused (one rounding) where the target has FMA,
-    /// else each product rounded on its own. Written out, not left to the
-    /// compiler's contraction, so a build's answers do not depend on -O or
+    /// The two multiply-adds of the test, rounded as config.hpp's RAYKIT_FMA
+    /// says (fused by default, on every target). Written out, not left to the
+    /// compiler's contraction, so answers do not depend on flags, -O or
     /// -ffp-contract; the 4-wide test (intersect/triangle4.hpp) and the
     /// device (kernels/raykit/kernels/common.hpp) round the same way.
     static RAYKIT_INLINE float msub(float a, float s, float b) noexcept {  // a − s·b
-#if RAYKIT_FAST_FMA
+#if RAYKIT_FMA
         return std::fma(-s, b, a);
 #else
         return a - s * b;
 #endif
     }
     static RAYKIT_INLINE float tnum(float U, float Az, float V, float Bz, float W, float Cz) noexcept {
-#if RAYKIT_FAST_FMA
+#if RAYKIT_FMA
         return std::fma(W, Cz, std::fma(U, Az, V * Bz));
 #else
         return U * Az + V * Bz + W * Cz;

@@ -17,15 +17,21 @@
 //
 // Being the scalar test, it shares its coordinate range (math/limits.hpp).
 //
-// With AVX the edge functions take one 4-lane double operation each; without
-// AVX (or with RAYKIT_NO_SIMD) the lanes run through the scalar test.
+// With AVX and FMA the edge functions take one 4-lane double operation each; without
+// them (or with RAYKIT_NO_SIMD) the lanes run through the scalar test. Watertight4 is
+// compiled once per instruction-set level (raykit/simd/dispatch.hpp): the part of this header
+// below RAYKIT_ISA_PASS is its per-level part.
 //
 // A block is 160 bytes: 9 planes of 4 floats (corner c, axis a at p[3c + a])
 // and the 4 triangle indices. Blocks hold copies of vertices: they are made
 // for tracing (scene/block_bvh.hpp) and must be remade after vertices move.
 // Unused lanes repeat a used lane (same triangle, same index), which changes
 // no answer.
-#pragma once
+#ifndef RAYKIT_ISA_PASS
+#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
+#endif
+#ifndef RAYKIT_INTERSECT_TRIANGLE4_HPP
+#define RAYKIT_INTERSECT_TRIANGLE4_HPP
 
 #include <bit>
 #include <cstddef>
@@ -33,13 +39,7 @@
 #include <type_traits>
 
 #include "raykit/intersect/triangle.hpp"
-
-#if defined(__AVX__) && !defined(RAYKIT_NO_SIMD) && (defined(__FMA__) || !RAYKIT_FAST_FMA)
-#include <immintrin.h>
-#define RAYKIT_TRI4_AVX 1
-#else
-#define RAYKIT_TRI4_AVX 0
-#endif
+#include "raykit/simd/isa.hpp"
 
 namespace raykit {
 
@@ -59,11 +59,18 @@ static_assert(sizeof(TriangleBlock4) == 160 && alignof(TriangleBlock4) == 32);
 static_assert(std::is_standard_layout_v<TriangleBlock4>);
 static_assert(offsetof(TriangleBlock4, p) == 0 && offsetof(TriangleBlock4, prim) == 144);
 
+}  // namespace raykit
+
+#endif  // RAYKIT_INTERSECT_TRIANGLE4_HPP
+
+#ifdef RAYKIT_ISA_PASS
+namespace raykit::RAYKIT_ISA_NS {
+
 struct Watertight4 {
     struct RayData {
         Watertight::RayData s;
         int ox, oy, oz;  ///< float offsets of the kx, ky, kz planes of corner 0 in a block
-#if RAYKIT_TRI4_AVX
+#if RAYKIT_ISA_AVX && (RAYKIT_ISA_FMA || !RAYKIT_FMA)
         __m128 orgx, orgy, orgz, sx, sy, sz;  ///< origin and shear in the sheared frame's axis order
 #endif
     };
@@ -74,7 +81,7 @@ struct Watertight4 {
         d.ox = 4 * d.s.kx;
         d.oy = 4 * d.s.ky;
         d.oz = 4 * d.s.kz;
-#if RAYKIT_TRI4_AVX
+#if RAYKIT_ISA_AVX && (RAYKIT_ISA_FMA || !RAYKIT_FMA)
         const float* o = &r.org.x;
         d.orgx = _mm_set1_ps(o[d.s.kx]);
         d.orgy = _mm_set1_ps(o[d.s.ky]);
@@ -91,7 +98,7 @@ struct Watertight4 {
     static RAYKIT_INLINE unsigned intersect(const RayData& d, const TriangleBlock4& b, float tmin, float tmax,
                                             float* RAYKIT_RESTRICT t, float* RAYKIT_RESTRICT u,
                                             float* RAYKIT_RESTRICT v) noexcept {
-#if RAYKIT_TRI4_AVX
+#if RAYKIT_ISA_AVX && (RAYKIT_ISA_FMA || !RAYKIT_FMA)
         const float* P = &b.p[0][0];
         // corner k's plane for sheared axis x is P + 12k + ox, and so on
         const __m128 az = _mm_sub_ps(_mm_load_ps(P + d.oz), d.orgz);
@@ -122,7 +129,7 @@ struct Watertight4 {
         const __m128 U = _mm256_cvtpd_ps(Ud), V = _mm256_cvtpd_ps(Vd), W = _mm256_cvtpd_ps(Wd);
         const __m128 det = _mm256_cvtpd_ps(detd);
         const __m128 Az = _mm_mul_ps(d.sz, az), Bz = _mm_mul_ps(d.sz, bz), Cz = _mm_mul_ps(d.sz, cz);
-#if defined(__FMA__)
+#if RAYKIT_FMA
         const __m128 T = _mm_fmadd_ps(W, Cz, _mm_fmadd_ps(U, Az, _mm_mul_ps(V, Bz)));
 #else
         const __m128 T = _mm_add_ps(_mm_add_ps(_mm_mul_ps(U, Az), _mm_mul_ps(V, Bz)), _mm_mul_ps(W, Cz));
@@ -155,10 +162,10 @@ struct Watertight4 {
     }
 
   private:
-#if RAYKIT_TRI4_AVX
+#if RAYKIT_ISA_AVX && (RAYKIT_ISA_FMA || !RAYKIT_FMA)
     /// a − s·b, rounded as Watertight::msub rounds it.
     static RAYKIT_INLINE __m128 msub(__m128 a, __m128 s, __m128 b) noexcept {
-#if defined(__FMA__)
+#if RAYKIT_FMA
         return _mm_fnmadd_ps(s, b, a);
 #else
         return _mm_sub_ps(a, _mm_mul_ps(s, b));
@@ -167,4 +174,5 @@ struct Watertight4 {
 #endif
 };
 
-}  // namespace raykit
+}  // namespace raykit::RAYKIT_ISA_NS
+#endif  // RAYKIT_ISA_PASS

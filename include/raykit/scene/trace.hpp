@@ -30,7 +30,15 @@
 //
 // Ties (two triangles at the same t) go to the smaller triangle index, so the answer does not
 // depend on the tree, the shape or the leaf store.
-#pragma once
+//
+// The walks and BlockLeaves' leaf loop are compiled once per instruction-set level
+// (raykit/simd/dispatch.hpp): the part of this header below RAYKIT_ISA_PASS is their per-level
+// part, and raykit::closest_hit & co. (declared here, defined there) call the level the CPU runs.
+#ifndef RAYKIT_ISA_PASS
+#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
+#endif
+#ifndef RAYKIT_SCENE_TRACE_HPP
+#define RAYKIT_SCENE_TRACE_HPP
 
 #include <bit>
 #include <cmath>
@@ -115,85 +123,11 @@ struct IndexedLeaves {
     }
 };
 
-/// Leaf store of 4-triangle blocks: slot k is blocks[k] (watertight test only).
+/// Leaf store of 4-triangle blocks: slot k is blocks[k] (watertight test only). The walks test
+/// them with their level's Watertight4 (the per-level BlockLeaves below RAYKIT_ISA_PASS).
 struct BlockLeaves {
     const TriangleBlock4* RAYKIT_RESTRICT blocks;
-
-    using RayData = Watertight4::RayData;
-    RAYKIT_INLINE static RayData prepare(const Ray& r) noexcept { return Watertight4::prepare(r); }
-
-    template <class Keep, class Stats>
-    RAYKIT_INLINE bool closest(const RayData& rd, const Ray& ray, std::uint32_t first, std::uint32_t count,
-                               float& tm, Hit& hit, const Keep& keep, Stats) const {
-        bool found = false;
-        for (std::uint32_t k = first; k < first + count; ++k) {
-            alignas(16) float t[4], u[4], v[4];
-            unsigned m = Watertight4::intersect(rd, blocks[k], ray.tmin, tm, t, u, v);
-            while (m) {  // lanes in order, as a scalar loop over the leaf's triangles
-                const int i = std::countr_zero(m);
-                m &= m - 1;
-                if (t[i] <= tm) found |= detail::take_closer(hit, tm, t[i], u[i], v[i], blocks[k].prim[i], keep);
-            }
-        }
-        return found;
-    }
-    template <class Keep, class Stats>
-    RAYKIT_INLINE bool any(const RayData& rd, const Ray& ray, std::uint32_t first, std::uint32_t count,
-                           const Keep& keep, Stats) const {
-        for (std::uint32_t k = first; k < first + count; ++k) {
-            alignas(16) float t[4], u[4], v[4];
-            unsigned m = Watertight4::intersect(rd, blocks[k], ray.tmin, ray.tmax, t, u, v);
-            if constexpr (!kFilters<Keep>) {
-                if (m) return true;
-            } else {
-                while (m) {
-                    const int i = std::countr_zero(m);
-                    m &= m - 1;
-                    if (keep(blocks[k].prim[i], u[i], v[i])) return true;
-                }
-            }
-        }
-        return false;
-    }
 };
-
-/// Closest accepted hit of `ray` in `tree` (a Bvh or WideBvhT) over `leaves`, within
-/// [ray.tmin, tmax] (tmax replaces ray.tmax: callers that narrow the interval pass the ray
-/// itself, not a copy, whose piecewise stores stall the vector loads of the ray setup).
-template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
-RAYKIT_INLINE Hit closest_hit_within(const Tree& tree, const Leaves& leaves, const Ray& ray, float tmax,
-                                     const Keep& keep = {}, Stats stats = nullptr) {
-    const typename Leaves::RayData rd = Leaves::prepare(ray);
-    Hit hit;
-    traverse<ClosestHit>(
-        tree, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float& tm) RAYKIT_LAMBDA_INLINE {
-            return leaves.closest(rd, ray, first, count, tm, hit, keep, stats);
-        },
-        stats);
-    return hit;
-}
-
-/// Closest accepted hit of `ray` in `tree` (a Bvh or WideBvhT) over `leaves`.
-template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
-RAYKIT_INLINE Hit closest_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep = {},
-                              Stats stats = nullptr) {
-    return closest_hit_within(tree, leaves, ray, ray.tmax, keep, stats);
-}
-
-/// True when `ray` has an accepted hit in [ray.tmin, ray.tmax].
-template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
-RAYKIT_INLINE bool any_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep = {},
-                           Stats stats = nullptr) {
-    const typename Leaves::RayData rd = Leaves::prepare(ray);
-    float tmax = ray.tmax;
-    return traverse<AnyHit>(
-        tree, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float&) RAYKIT_LAMBDA_INLINE {
-            return leaves.any(rd, ray, first, count, keep, stats);
-        },
-        stats);
-}
 
 /// A tree a packet can walk (bvh/traverse_packet.hpp): the 4- and 8-wide trees.
 template <class T>
@@ -201,62 +135,30 @@ inline constexpr bool kPacketTree = false;
 template <int W>
 inline constexpr bool kPacketTree<WideBvhT<W>> = true;
 
-/// Closest accepted hits of rays[0, n) (n ≤ kPacketWidth) walked as one packet: hits[k] is
+/// Closest accepted hit of `ray` in `tree` (a Bvh or WideBvhT) over `leaves`, within
+/// [ray.tmin, tmax] (tmax replaces ray.tmax: callers that narrow the interval pass the ray
+/// itself, not a copy, whose piecewise stores stall the vector loads of the ray setup).
+template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
+Hit closest_hit_within(const Tree& tree, const Leaves& leaves, const Ray& ray, float tmax, const Keep& keep = {},
+                       Stats stats = nullptr);
+/// Closest accepted hit of `ray` in `tree` (a Bvh or WideBvhT) over `leaves`.
+template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
+Hit closest_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep = {}, Stats stats = nullptr);
+/// True when `ray` has an accepted hit in [ray.tmin, ray.tmax].
+template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
+bool any_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep = {}, Stats stats = nullptr);
+/// Closest accepted hits of rays[0, n) (n ≤ kPacketWidth) walked as packets: hits[k] is
 /// closest_hit_within(tree, leaves, rays[k], tmax[k], keep) bit for bit (tmax null: each
 /// ray's own tmax). Trees a packet cannot walk (the binary Bvh) and rays into several
 /// octants (one_octant) are walked ray by ray.
 template <class Tree, class Leaves, class Keep = AcceptAll>
-RAYKIT_INLINE void closest_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, const float* tmax,
-                                      unsigned n, Hit* hits, const Keep& keep = {}) {
-    if (!kPacketTree<Tree> || n < 2 || !one_octant(rays, n)) {
-        for (unsigned k = 0; k < n; ++k)
-            hits[k] = closest_hit_within(tree, leaves, rays[k], tmax ? tmax[k] : rays[k].tmax, keep);
-    } else if constexpr (kPacketTree<Tree>) {
-        RayPacket<> p(rays, n);
-        typename Leaves::RayData rd[kPacketWidth];
-        for (unsigned k = 0; k < n; ++k) {
-            if (tmax) p.tmax[k] = tmax[k];
-            hits[k] = Hit{};
-            rd[k] = Leaves::prepare(rays[k]);
-        }
-        traverse_packet<ClosestHit>(tree, p, (1u << n) - 1,
-                                    [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
-                                        for (; m; m &= m - 1) {
-                                            const int k = std::countr_zero(m);
-                                            leaves.closest(rd[k], rays[k], first, count, p.tmax[k], hits[k], keep,
-                                                           nullptr);
-                                        }
-                                        return 0u;
-                                    });
-    }
-}
-
-/// Any-hit of rays[0, n) (n ≤ kPacketWidth) walked as one packet (ray by ray where
+void closest_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, const float* tmax, unsigned n,
+                        Hit* hits, const Keep& keep = {});
+/// Any-hit of rays[0, n) (n ≤ kPacketWidth) walked as packets (ray by ray where
 /// closest_hit_packet walks them so): bit k set when rays[k] has an accepted hit in
 /// [tmin, tmax] (any_hit's answer, lane by lane).
 template <class Tree, class Leaves, class Keep = AcceptAll>
-RAYKIT_INLINE unsigned any_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, unsigned n,
-                                      const Keep& keep = {}) {
-    unsigned hit = 0;
-    if (!kPacketTree<Tree> || n < 2 || !one_octant(rays, n)) {
-        for (unsigned k = 0; k < n; ++k) hit |= unsigned(any_hit(tree, leaves, rays[k], keep)) << k;
-    } else if constexpr (kPacketTree<Tree>) {
-        const RayPacket<> p(rays, n);
-        typename Leaves::RayData rd[kPacketWidth];
-        for (unsigned k = 0; k < n; ++k) rd[k] = Leaves::prepare(rays[k]);
-        hit = traverse_packet<AnyHit>(tree, p, (1u << n) - 1,
-                                      [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
-                                          unsigned done = 0;
-                                          for (; m; m &= m - 1) {
-                                              const int k = std::countr_zero(m);
-                                              if (leaves.any(rd[k], rays[k], first, count, keep, nullptr))
-                                                  done |= 1u << k;
-                                          }
-                                          return done;
-                                      });
-    }
-    return hit;
-}
+unsigned any_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, unsigned n, const Keep& keep = {});
 
 /// The index store of `tree` (built over `mesh`) for triangle test `Test`.
 template <class Test = DefaultTriangleTest, class Tree>
@@ -314,3 +216,149 @@ bool brute_force_any(const MeshView& mesh, const Ray& ray) {
 }
 
 }  // namespace raykit
+
+#endif  // RAYKIT_SCENE_TRACE_HPP
+
+#ifdef RAYKIT_ISA_PASS
+namespace raykit::RAYKIT_ISA_NS {
+
+/// BlockLeaves with this level's 4-lane test.
+struct BlockLeaves {
+    const TriangleBlock4* RAYKIT_RESTRICT blocks;
+
+    using RayData = Watertight4::RayData;
+    RAYKIT_INLINE static RayData prepare(const Ray& r) noexcept { return Watertight4::prepare(r); }
+
+    template <class Keep, class Stats>
+    RAYKIT_INLINE bool closest(const RayData& rd, const Ray& ray, std::uint32_t first, std::uint32_t count,
+                               float& tm, Hit& hit, const Keep& keep, Stats) const {
+        bool found = false;
+        for (std::uint32_t k = first; k < first + count; ++k) {
+            alignas(16) float t[4], u[4], v[4];
+            unsigned m = Watertight4::intersect(rd, blocks[k], ray.tmin, tm, t, u, v);
+            while (m) {  // lanes in order, as a scalar loop over the leaf's triangles
+                const int i = std::countr_zero(m);
+                m &= m - 1;
+                if (t[i] <= tm) found |= raykit::detail::take_closer(hit, tm, t[i], u[i], v[i], blocks[k].prim[i], keep);
+            }
+        }
+        return found;
+    }
+    template <class Keep, class Stats>
+    RAYKIT_INLINE bool any(const RayData& rd, const Ray& ray, std::uint32_t first, std::uint32_t count,
+                           const Keep& keep, Stats) const {
+        for (std::uint32_t k = first; k < first + count; ++k) {
+            alignas(16) float t[4], u[4], v[4];
+            unsigned m = Watertight4::intersect(rd, blocks[k], ray.tmin, ray.tmax, t, u, v);
+            if constexpr (!kFilters<Keep>) {
+                if (m) return true;
+            } else {
+                while (m) {
+                    const int i = std::countr_zero(m);
+                    m &= m - 1;
+                    if (keep(blocks[k].prim[i], u[i], v[i])) return true;
+                }
+            }
+        }
+        return false;
+    }
+};
+
+/// A leaf store as this level tests it: raykit::BlockLeaves becomes this level's BlockLeaves;
+/// the others are used as they are.
+template <class L>
+RAYKIT_INLINE const L& at_level(const L& l) noexcept {
+    return l;
+}
+RAYKIT_INLINE BlockLeaves at_level(const raykit::BlockLeaves& l) noexcept { return {l.blocks}; }
+
+// The walks of raykit::closest_hit & co. (trace.hpp's declarations above) at this level; the
+// calls between them are qualified, since the public ones are found by argument lookup too.
+
+template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
+Hit closest_hit_within(const Tree& tree, const Leaves& leaves_in, const Ray& ray, float tmax, const Keep& keep = {},
+                       Stats stats = nullptr) {
+    const auto& leaves = RAYKIT_ISA_NS::at_level(leaves_in);
+    using L = std::remove_cvref_t<decltype(leaves)>;
+    const typename L::RayData rd = L::prepare(ray);
+    Hit hit;
+    RAYKIT_ISA_NS::traverse<ClosestHit>(
+        tree, ray, tmax,
+        [&](std::uint32_t first, std::uint32_t count, float& tm) RAYKIT_LAMBDA_INLINE {
+            return leaves.closest(rd, ray, first, count, tm, hit, keep, stats);
+        },
+        stats);
+    return hit;
+}
+
+template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
+bool any_hit(const Tree& tree, const Leaves& leaves_in, const Ray& ray, const Keep& keep = {}, Stats stats = nullptr) {
+    const auto& leaves = RAYKIT_ISA_NS::at_level(leaves_in);
+    using L = std::remove_cvref_t<decltype(leaves)>;
+    const typename L::RayData rd = L::prepare(ray);
+    float tmax = ray.tmax;
+    return RAYKIT_ISA_NS::traverse<AnyHit>(
+        tree, ray, tmax,
+        [&](std::uint32_t first, std::uint32_t count, float&) RAYKIT_LAMBDA_INLINE {
+            return leaves.any(rd, ray, first, count, keep, stats);
+        },
+        stats);
+}
+
+/// n ≤ kPacketLanes rays.
+template <class Tree, class Leaves, class Keep = AcceptAll>
+void closest_hit_packet(const Tree& tree, const Leaves& leaves_in, const Ray* rays, const float* tmax, unsigned n,
+                        Hit* hits, const Keep& keep = {}) {
+    const auto& leaves = RAYKIT_ISA_NS::at_level(leaves_in);
+    using L = std::remove_cvref_t<decltype(leaves)>;
+    if (!kPacketTree<Tree> || n < 2 || !one_octant(rays, n)) {
+        for (unsigned k = 0; k < n; ++k)
+            hits[k] = RAYKIT_ISA_NS::closest_hit_within(tree, leaves, rays[k], tmax ? tmax[k] : rays[k].tmax, keep);
+    } else if constexpr (kPacketTree<Tree>) {
+        RayPacket<> p(rays, n);
+        typename L::RayData rd[kPacketLanes];
+        for (unsigned k = 0; k < n; ++k) {
+            if (tmax) p.tmax[k] = tmax[k];
+            hits[k] = Hit{};
+            rd[k] = L::prepare(rays[k]);
+        }
+        RAYKIT_ISA_NS::traverse_packet<ClosestHit>(tree, p, (1u << n) - 1,
+                                    [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
+                                        for (; m; m &= m - 1) {
+                                            const int k = std::countr_zero(m);
+                                            leaves.closest(rd[k], rays[k], first, count, p.tmax[k], hits[k], keep,
+                                                           nullptr);
+                                        }
+                                        return 0u;
+                                    });
+    }
+}
+
+/// n ≤ kPacketLanes rays.
+template <class Tree, class Leaves, class Keep = AcceptAll>
+unsigned any_hit_packet(const Tree& tree, const Leaves& leaves_in, const Ray* rays, unsigned n, const Keep& keep = {}) {
+    const auto& leaves = RAYKIT_ISA_NS::at_level(leaves_in);
+    using L = std::remove_cvref_t<decltype(leaves)>;
+    unsigned hit = 0;
+    if (!kPacketTree<Tree> || n < 2 || !one_octant(rays, n)) {
+        for (unsigned k = 0; k < n; ++k) hit |= unsigned(RAYKIT_ISA_NS::any_hit(tree, leaves, rays[k], keep)) << k;
+    } else if constexpr (kPacketTree<Tree>) {
+        const RayPacket<> p(rays, n);
+        typename L::RayData rd[kPacketLanes];
+        for (unsigned k = 0; k < n; ++k) rd[k] = L::prepare(rays[k]);
+        hit = RAYKIT_ISA_NS::traverse_packet<AnyHit>(tree, p, (1u << n) - 1,
+                                      [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
+                                          unsigned done = 0;
+                                          for (; m; m &= m - 1) {
+                                              const int k = std::countr_zero(m);
+                                              if (leaves.any(rd[k], rays[k], first, count, keep, nullptr))
+                                                  done |= 1u << k;
+                                          }
+                                          return done;
+                                      });
+    }
+    return hit;
+}
+
+}  // namespace raykit::RAYKIT_ISA_NS
+#endif  // RAYKIT_ISA_PASS

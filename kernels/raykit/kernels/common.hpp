@@ -155,7 +155,7 @@ RK_INLINE rk_wt_ray rk_wt_prepare(const float org[3], const float dir[3]) {
 
 /* The two places where a compiler may fuse a multiply-add in the CPU's
    Watertight test: A[kx] - sx*A[kz] and the t numerator. The host fuses them
-   exactly when RAYKIT_FAST_FMA is 1 (raykit::cl::host_float_config) and sets
+   exactly when RAYKIT_FMA is 1 (raykit::cl::host_float_config) and sets
    RK_FUSE_MSUB / RK_FUSE_T so the device does the same, explicitly. */
 #ifndef RK_FUSE_MSUB
 #define RK_FUSE_MSUB 1

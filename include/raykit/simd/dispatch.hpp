@@ -1,0 +1,260 @@
+// raykit/simd/dispatch.hpp — the traversals compiled once per instruction-set level, and the
+// public walks that call the level the CPU runs (raykit/simd/isa.hpp says why).
+//
+// Each traversal header (intersect/slab.hpp, intersect/triangle4.hpp, bvh/traverse.hpp,
+// bvh/traverse_wide.hpp, bvh/traverse_packet.hpp, scene/trace.hpp) has a part included once
+// (types, declarations) and a part below RAYKIT_ISA_PASS that this file includes once per level,
+// inside namespace raykit::isa_<level> and a target pragma (GCC's `target`, clang's attribute
+// push), with RAYKIT_ISA_SSE2 / SSE41 / AVX / FMA / AVX512 saying what the level has. The
+// compiler's own flags decide the base level; levels above it that x86-64 CPUs may have get
+// their own copy. Each public walk (raykit::closest_hit, any_hit, closest_hit_within, the two
+// packet walks, traverse) switches on active_isa() and calls its level's copy: one load and
+// a predictable branch per call. Nothing but these headers' own code is compiled under a
+// target pragma (every other header they need is included before), so no inline function of
+// the standard library or of GLM is ever emitted with instructions the CPU may lack.
+//
+// Not Highway: its dynamic dispatch (HWY_EXPORT) takes plain functions, and these walks are
+// templates over the user's leaf filter; and the box tests rely on MAXPS/MINPS returning their
+// second operand on NaN (intersect/slab.hpp), which the hand-written intrinsics keep.
+#ifndef RAYKIT_SIMD_DISPATCH_HPP
+#define RAYKIT_SIMD_DISPATCH_HPP
+
+#include "raykit/simd/isa.hpp"
+// the once parts, in dependency order (their own #include of this file is skipped: guarded)
+#include "raykit/intersect/slab.hpp"
+#include "raykit/intersect/triangle4.hpp"
+#include "raykit/bvh/traverse.hpp"
+#include "raykit/bvh/traverse_wide.hpp"
+#include "raykit/bvh/traverse_packet.hpp"
+#include "raykit/scene/trace.hpp"
+
+#define RAYKIT_ISA_PASS 1
+
+// ---- base: what the compiler's flags give ----
+#define RAYKIT_ISA_NS isa_base
+#if !defined(RAYKIT_NO_SIMD) && (defined(__SSE2__) || defined(_M_X64))
+#define RAYKIT_ISA_SSE2 1
+#else
+#define RAYKIT_ISA_SSE2 0
+#endif
+#if !defined(RAYKIT_NO_SIMD) && defined(__SSE4_1__)
+#define RAYKIT_ISA_SSE41 1
+#else
+#define RAYKIT_ISA_SSE41 0
+#endif
+#if !defined(RAYKIT_NO_SIMD) && defined(__AVX__)
+#define RAYKIT_ISA_AVX 1
+#else
+#define RAYKIT_ISA_AVX 0
+#endif
+#if !defined(RAYKIT_NO_SIMD) && defined(__FMA__)
+#define RAYKIT_ISA_FMA 1
+#else
+#define RAYKIT_ISA_FMA 0
+#endif
+#if !defined(RAYKIT_NO_SIMD) && defined(__AVX512F__)
+#define RAYKIT_ISA_AVX512 1
+#else
+#define RAYKIT_ISA_AVX512 0
+#endif
+#include "raykit/intersect/slab.hpp"
+#include "raykit/intersect/triangle4.hpp"
+#include "raykit/bvh/traverse.hpp"
+#include "raykit/bvh/traverse_wide.hpp"
+#include "raykit/bvh/traverse_packet.hpp"
+#include "raykit/scene/trace.hpp"
+#undef RAYKIT_ISA_NS
+#undef RAYKIT_ISA_SSE2
+#undef RAYKIT_ISA_SSE41
+#undef RAYKIT_ISA_AVX
+#undef RAYKIT_ISA_FMA
+#undef RAYKIT_ISA_AVX512
+
+// ---- avx2 (x86-64-v3) ----
+#if RAYKIT_ISA_BUILD_AVX2
+#if defined(__clang__)
+#pragma clang attribute push(__attribute__((target("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2"))), apply_to = function)
+#else
+#pragma GCC push_options
+#pragma GCC target("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2")
+#endif
+#define RAYKIT_ISA_NS isa_avx2
+#define RAYKIT_ISA_SSE2 1
+#define RAYKIT_ISA_SSE41 1
+#define RAYKIT_ISA_AVX 1
+#define RAYKIT_ISA_FMA 1
+#define RAYKIT_ISA_AVX512 0
+#include "raykit/intersect/slab.hpp"
+#include "raykit/intersect/triangle4.hpp"
+#include "raykit/bvh/traverse.hpp"
+#include "raykit/bvh/traverse_wide.hpp"
+#include "raykit/bvh/traverse_packet.hpp"
+#include "raykit/scene/trace.hpp"
+#undef RAYKIT_ISA_NS
+#undef RAYKIT_ISA_SSE2
+#undef RAYKIT_ISA_SSE41
+#undef RAYKIT_ISA_AVX
+#undef RAYKIT_ISA_FMA
+#undef RAYKIT_ISA_AVX512
+#if defined(__clang__)
+#pragma clang attribute pop
+#else
+#pragma GCC pop_options
+#endif
+#endif
+
+// ---- avx512 (AVX-512 F/VL/BW/DQ over x86-64-v3) ----
+#if RAYKIT_ISA_BUILD_AVX512
+#if defined(__clang__)
+#pragma clang attribute push(                                                                                  \
+    __attribute__((target("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2,avx512f,avx512vl,avx512bw,avx512dq"))), \
+    apply_to = function)
+#else
+#pragma GCC push_options
+#pragma GCC target("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2,avx512f,avx512vl,avx512bw,avx512dq")
+#endif
+#define RAYKIT_ISA_NS isa_avx512
+#define RAYKIT_ISA_SSE2 1
+#define RAYKIT_ISA_SSE41 1
+#define RAYKIT_ISA_AVX 1
+#define RAYKIT_ISA_FMA 1
+#define RAYKIT_ISA_AVX512 1
+#include "raykit/intersect/slab.hpp"
+#include "raykit/intersect/triangle4.hpp"
+#include "raykit/bvh/traverse.hpp"
+#include "raykit/bvh/traverse_wide.hpp"
+#include "raykit/bvh/traverse_packet.hpp"
+#include "raykit/scene/trace.hpp"
+#undef RAYKIT_ISA_NS
+#undef RAYKIT_ISA_SSE2
+#undef RAYKIT_ISA_SSE41
+#undef RAYKIT_ISA_AVX
+#undef RAYKIT_ISA_FMA
+#undef RAYKIT_ISA_AVX512
+#if defined(__clang__)
+#pragma clang attribute pop
+#else
+#pragma GCC pop_options
+#endif
+#endif
+
+#undef RAYKIT_ISA_PASS
+
+/// `return <level namespace>::CALL;` for the level active_isa() names.
+#if RAYKIT_ISA_BUILD_AVX512
+#define RAYKIT_ISA_CASE_AVX512(...) \
+    case ::raykit::Isa::avx512:     \
+        return ::raykit::isa_avx512::__VA_ARGS__;
+#else
+#define RAYKIT_ISA_CASE_AVX512(...)
+#endif
+#if RAYKIT_ISA_BUILD_AVX2
+#define RAYKIT_ISA_CASE_AVX2(...) \
+    case ::raykit::Isa::avx2:     \
+        return ::raykit::isa_avx2::__VA_ARGS__;
+#else
+#define RAYKIT_ISA_CASE_AVX2(...)
+#endif
+#if RAYKIT_ISA_BUILD_AVX2 || RAYKIT_ISA_BUILD_AVX512
+#define RAYKIT_ISA_DISPATCH(...)                    \
+    switch (::raykit::active_isa()) {               \
+        RAYKIT_ISA_CASE_AVX512(__VA_ARGS__)         \
+        RAYKIT_ISA_CASE_AVX2(__VA_ARGS__)           \
+        default:                                    \
+            return ::raykit::isa_base::__VA_ARGS__; \
+    }
+#else
+#define RAYKIT_ISA_DISPATCH(...) return ::raykit::isa_base::__VA_ARGS__;
+#endif
+
+namespace raykit {
+
+// The per-ray state types, as the base level has them (tests compare them with their scalar forms).
+using isa_base::SlabRay;
+using isa_base::Watertight4;
+using isa_base::WideSlabRay;
+
+/// Ordered single-ray walk of a Bvh or WideBvhT (bvh/traverse.hpp, bvh/traverse_wide.hpp).
+template <class Mode = ClosestHit, class Tree, class LeafFn, class Stats = std::nullptr_t>
+bool traverse(const Tree& tree, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
+    RAYKIT_ISA_DISPATCH(traverse<Mode>(tree, ray, tmax, leaf, stats))
+}
+
+template <class Tree, class Leaves, class Keep, class Stats>
+Hit closest_hit_within(const Tree& tree, const Leaves& leaves, const Ray& ray, float tmax, const Keep& keep,
+                       Stats stats) {
+    RAYKIT_ISA_DISPATCH(closest_hit_within(tree, leaves, ray, tmax, keep, stats))
+}
+
+template <class Tree, class Leaves, class Keep, class Stats>
+Hit closest_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep, Stats stats) {
+    RAYKIT_ISA_DISPATCH(closest_hit_within(tree, leaves, ray, ray.tmax, keep, stats))
+}
+
+template <class Tree, class Leaves, class Keep, class Stats>
+bool any_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep, Stats stats) {
+    RAYKIT_ISA_DISPATCH(any_hit(tree, leaves, ray, keep, stats))
+}
+
+namespace detail {
+/// The packet walk of one level over rays[0, n), n ≤ kPacketWidth, in packets of its own width.
+template <int Lanes, class Fn>
+RAYKIT_INLINE void split_packets(unsigned n, Fn&& fn) {
+    for (unsigned first = 0; first < n; first += unsigned(Lanes)) fn(first, n - first < unsigned(Lanes) ? n - first : unsigned(Lanes));
+}
+}  // namespace detail
+
+template <class Tree, class Leaves, class Keep>
+void closest_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, const float* tmax, unsigned n,
+                        Hit* hits, const Keep& keep) {
+    const auto at = [&](auto lanes, auto walk) {
+        detail::split_packets<decltype(lanes)::value>(n, [&](unsigned first, unsigned k) {
+            walk(tree, leaves, rays + first, tmax ? tmax + first : nullptr, k, hits + first, keep);
+        });
+    };
+    switch (active_isa()) {
+#if RAYKIT_ISA_BUILD_AVX512
+        case Isa::avx512:
+            return at(std::integral_constant<int, isa_avx512::kPacketLanes>{},
+                      [](auto&&... a) { isa_avx512::closest_hit_packet(a...); });
+#endif
+#if RAYKIT_ISA_BUILD_AVX2
+        case Isa::avx2:
+            return at(std::integral_constant<int, isa_avx2::kPacketLanes>{},
+                      [](auto&&... a) { isa_avx2::closest_hit_packet(a...); });
+#endif
+        default:
+            return at(std::integral_constant<int, isa_base::kPacketLanes>{},
+                      [](auto&&... a) { isa_base::closest_hit_packet(a...); });
+    }
+}
+
+template <class Tree, class Leaves, class Keep>
+unsigned any_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, unsigned n, const Keep& keep) {
+    unsigned hit = 0;
+    const auto at = [&](auto lanes, auto walk) {
+        detail::split_packets<decltype(lanes)::value>(n, [&](unsigned first, unsigned k) {
+            hit |= walk(tree, leaves, rays + first, k, keep) << first;
+        });
+        return hit;
+    };
+    switch (active_isa()) {
+#if RAYKIT_ISA_BUILD_AVX512
+        case Isa::avx512:
+            return at(std::integral_constant<int, isa_avx512::kPacketLanes>{},
+                      [](auto&&... a) { return isa_avx512::any_hit_packet(a...); });
+#endif
+#if RAYKIT_ISA_BUILD_AVX2
+        case Isa::avx2:
+            return at(std::integral_constant<int, isa_avx2::kPacketLanes>{},
+                      [](auto&&... a) { return isa_avx2::any_hit_packet(a...); });
+#endif
+        default:
+            return at(std::integral_constant<int, isa_base::kPacketLanes>{},
+                      [](auto&&... a) { return isa_base::any_hit_packet(a...); });
+    }
+}
+
+}  // namespace raykit
+
+#endif  // RAYKIT_SIMD_DISPATCH_HPP

@@ -1,0 +1,21 @@
+# Runs the consumer built with default flags and the one built with -march=native and fails
+# unless both print the same "answers" line (raykit/simd/isa.hpp: one FMA rule, dispatch).
+# Run as: cmake -DDEFAULT=<consumer> -DNATIVE=<consumer_native> -P compare_answers.cmake
+foreach(which DEFAULT NATIVE)
+    if(NOT EXISTS "${${which}}")
+        message(FATAL_ERROR "no ${which} consumer at ${${which}}")
+    endif()
+    execute_process(COMMAND "${${which}}" OUTPUT_VARIABLE out RESULT_VARIABLE rc)
+    if(NOT rc EQUAL 0)
+        message(FATAL_ERROR "${${which}} failed (${rc}):\n${out}")
+    endif()
+    string(REGEX MATCH "answers [0-9a-f]+" line_${which} "${out}")
+    string(REGEX MATCH "vector level [a-z0-9]+" level_${which} "${out}")
+    if(NOT line_${which})
+        message(FATAL_ERROR "${${which}} printed no answers line:\n${out}")
+    endif()
+endforeach()
+message(STATUS "default build: ${line_DEFAULT} (${level_DEFAULT}); -march=native: ${line_NATIVE} (${level_NATIVE})")
+if(NOT line_DEFAULT STREQUAL line_NATIVE)
+    message(FATAL_ERROR "a default build and a -march=native build answer differently")
+endif()
