@@ -40,6 +40,7 @@
 #ifndef RAYKIT_SCENE_TRACE_HPP
 #define RAYKIT_SCENE_TRACE_HPP
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstddef>
@@ -305,58 +306,75 @@ bool any_hit(const Tree& tree, const Leaves& leaves_in, const Ray& ray, const Ke
         stats);
 }
 
-/// n ≤ kPacketLanes rays.
-template <class Tree, class Leaves, class Keep = AcceptAll>
-void closest_hit_packet(const Tree& tree, const Leaves& leaves_in, const Ray* rays, const float* tmax, unsigned n,
-                        Hit* hits, const Keep& keep = {}) {
-    const auto& leaves = RAYKIT_ISA_NS::at_level(leaves_in);
-    using L = std::remove_cvref_t<decltype(leaves)>;
+/// closest_hit_packet on n ≤ kPacketLanes rays: one packet walk.
+template <class Tree, class Leaves, class Keep>
+RAYKIT_INLINE void packet_closest(const Tree& tree, const Leaves& leaves, const Ray* rays, const float* tmax,
+                                  unsigned n, Hit* hits, const Keep& keep) {
     if (!kPacketTree<Tree> || n < 2 || !one_octant(rays, n)) {
         for (unsigned k = 0; k < n; ++k)
             hits[k] = RAYKIT_ISA_NS::closest_hit_within(tree, leaves, rays[k], tmax ? tmax[k] : rays[k].tmax, keep);
     } else if constexpr (kPacketTree<Tree>) {
         RayPacket<> p(rays, n);
-        typename L::RayData rd[kPacketLanes];
+        typename Leaves::RayData rd[kPacketLanes];
         for (unsigned k = 0; k < n; ++k) {
             if (tmax) p.tmax[k] = tmax[k];
             hits[k] = Hit{};
-            rd[k] = L::prepare(rays[k]);
+            rd[k] = Leaves::prepare(rays[k]);
         }
-        RAYKIT_ISA_NS::traverse_packet<ClosestHit>(tree, p, (1u << n) - 1,
-                                    [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
-                                        for (; m; m &= m - 1) {
-                                            const int k = std::countr_zero(m);
-                                            leaves.closest(rd[k], rays[k], first, count, p.tmax[k], hits[k], keep,
-                                                           nullptr);
-                                        }
-                                        return 0u;
-                                    });
+        const auto leaf = [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
+            for (; m; m &= m - 1) {
+                const int k = std::countr_zero(m);
+                leaves.closest(rd[k], rays[k], first, count, p.tmax[k], hits[k], keep, nullptr);
+            }
+            return 0u;
+        };
+        RAYKIT_ISA_NS::traverse_packet<ClosestHit>(tree, p, (1u << n) - 1, leaf);
     }
 }
 
-/// n ≤ kPacketLanes rays.
+/// any_hit_packet on n ≤ kPacketLanes rays: one packet walk.
+template <class Tree, class Leaves, class Keep>
+RAYKIT_INLINE unsigned packet_any(const Tree& tree, const Leaves& leaves, const Ray* rays, unsigned n,
+                                  const Keep& keep) {
+    if (!kPacketTree<Tree> || n < 2 || !one_octant(rays, n)) {
+        unsigned hit = 0;
+        for (unsigned k = 0; k < n; ++k) hit |= unsigned(RAYKIT_ISA_NS::any_hit(tree, leaves, rays[k], keep)) << k;
+        return hit;
+    } else if constexpr (kPacketTree<Tree>) {
+        const RayPacket<> p(rays, n);
+        typename Leaves::RayData rd[kPacketLanes];
+        for (unsigned k = 0; k < n; ++k) rd[k] = Leaves::prepare(rays[k]);
+        const auto leaf = [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
+            unsigned done = 0;
+            for (; m; m &= m - 1) {
+                const int k = std::countr_zero(m);
+                if (leaves.any(rd[k], rays[k], first, count, keep, nullptr)) done |= 1u << k;
+            }
+            return done;
+        };
+        return RAYKIT_ISA_NS::traverse_packet<AnyHit>(tree, p, (1u << n) - 1, leaf);
+    }
+    return 0;
+}
+
+/// n ≤ kPacketWidth rays, in packets of this level's kPacketLanes.
+template <class Tree, class Leaves, class Keep = AcceptAll>
+void closest_hit_packet(const Tree& tree, const Leaves& leaves_in, const Ray* rays, const float* tmax, unsigned n,
+                        Hit* hits, const Keep& keep = {}) {
+    const auto& leaves = RAYKIT_ISA_NS::at_level(leaves_in);
+    for (unsigned first = 0; first < n; first += unsigned(kPacketLanes))
+        RAYKIT_ISA_NS::packet_closest(tree, leaves, rays + first, tmax ? tmax + first : nullptr,
+                                      std::min(n - first, unsigned(kPacketLanes)), hits + first, keep);
+}
+
+/// n ≤ kPacketWidth rays, in packets of this level's kPacketLanes.
 template <class Tree, class Leaves, class Keep = AcceptAll>
 unsigned any_hit_packet(const Tree& tree, const Leaves& leaves_in, const Ray* rays, unsigned n, const Keep& keep = {}) {
     const auto& leaves = RAYKIT_ISA_NS::at_level(leaves_in);
-    using L = std::remove_cvref_t<decltype(leaves)>;
     unsigned hit = 0;
-    if (!kPacketTree<Tree> || n < 2 || !one_octant(rays, n)) {
-        for (unsigned k = 0; k < n; ++k) hit |= unsigned(RAYKIT_ISA_NS::any_hit(tree, leaves, rays[k], keep)) << k;
-    } else if constexpr (kPacketTree<Tree>) {
-        const RayPacket<> p(rays, n);
-        typename L::RayData rd[kPacketLanes];
-        for (unsigned k = 0; k < n; ++k) rd[k] = L::prepare(rays[k]);
-        hit = RAYKIT_ISA_NS::traverse_packet<AnyHit>(tree, p, (1u << n) - 1,
-                                      [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
-                                          unsigned done = 0;
-                                          for (; m; m &= m - 1) {
-                                              const int k = std::countr_zero(m);
-                                              if (leaves.any(rd[k], rays[k], first, count, keep, nullptr))
-                                                  done |= 1u << k;
-                                          }
-                                          return done;
-                                      });
-    }
+    for (unsigned first = 0; first < n; first += unsigned(kPacketLanes))
+        hit |= RAYKIT_ISA_NS::packet_any(tree, leaves, rays + first, std::min(n - first, unsigned(kPacketLanes)), keep)
+               << first;
     return hit;
 }
 

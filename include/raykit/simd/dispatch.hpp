@@ -57,86 +57,42 @@
 #else
 #define RAYKIT_ISA_AVX512 0
 #endif
-#include "raykit/intersect/slab.hpp"
-#include "raykit/intersect/triangle4.hpp"
-#include "raykit/bvh/traverse.hpp"
-#include "raykit/bvh/traverse_wide.hpp"
-#include "raykit/bvh/traverse_packet.hpp"
-#include "raykit/scene/trace.hpp"
-#undef RAYKIT_ISA_NS
-#undef RAYKIT_ISA_SSE2
-#undef RAYKIT_ISA_SSE41
-#undef RAYKIT_ISA_AVX
-#undef RAYKIT_ISA_FMA
-#undef RAYKIT_ISA_AVX512
+#include "raykit/simd/level.inc"
 
-// ---- avx2 (x86-64-v3) ----
-#if RAYKIT_ISA_BUILD_AVX2
+// ---- avx2 (x86-64-v3) and avx512 (AVX-512 F/VL/BW/DQ over it), each under its target ----
+#define RAYKIT_ISA_PRAGMA(...) _Pragma(#__VA_ARGS__)
 #if defined(__clang__)
-#pragma clang attribute push(__attribute__((target("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2"))), apply_to = function)
+#define RAYKIT_ISA_BEGIN(features) RAYKIT_ISA_PRAGMA(clang attribute push(__attribute__((target(features))), apply_to = function))
+#define RAYKIT_ISA_END RAYKIT_ISA_PRAGMA(clang attribute pop)
 #else
-#pragma GCC push_options
-#pragma GCC target("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2")
+#define RAYKIT_ISA_BEGIN(features) RAYKIT_ISA_PRAGMA(GCC push_options) RAYKIT_ISA_PRAGMA(GCC target(features))
+#define RAYKIT_ISA_END RAYKIT_ISA_PRAGMA(GCC pop_options)
 #endif
+#if RAYKIT_ISA_BUILD_AVX2
+RAYKIT_ISA_BEGIN("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2")
 #define RAYKIT_ISA_NS isa_avx2
 #define RAYKIT_ISA_SSE2 1
 #define RAYKIT_ISA_SSE41 1
 #define RAYKIT_ISA_AVX 1
 #define RAYKIT_ISA_FMA 1
 #define RAYKIT_ISA_AVX512 0
-#include "raykit/intersect/slab.hpp"
-#include "raykit/intersect/triangle4.hpp"
-#include "raykit/bvh/traverse.hpp"
-#include "raykit/bvh/traverse_wide.hpp"
-#include "raykit/bvh/traverse_packet.hpp"
-#include "raykit/scene/trace.hpp"
-#undef RAYKIT_ISA_NS
-#undef RAYKIT_ISA_SSE2
-#undef RAYKIT_ISA_SSE41
-#undef RAYKIT_ISA_AVX
-#undef RAYKIT_ISA_FMA
-#undef RAYKIT_ISA_AVX512
-#if defined(__clang__)
-#pragma clang attribute pop
-#else
-#pragma GCC pop_options
+#include "raykit/simd/level.inc"
+RAYKIT_ISA_END
 #endif
-#endif
-
-// ---- avx512 (AVX-512 F/VL/BW/DQ over x86-64-v3) ----
 #if RAYKIT_ISA_BUILD_AVX512
-#if defined(__clang__)
-#pragma clang attribute push(                                                                                  \
-    __attribute__((target("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2,avx512f,avx512vl,avx512bw,avx512dq"))), \
-    apply_to = function)
-#else
-#pragma GCC push_options
-#pragma GCC target("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2,avx512f,avx512vl,avx512bw,avx512dq")
-#endif
+RAYKIT_ISA_BEGIN("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2,avx512f,avx512vl,avx512bw,avx512dq")
 #define RAYKIT_ISA_NS isa_avx512
 #define RAYKIT_ISA_SSE2 1
 #define RAYKIT_ISA_SSE41 1
 #define RAYKIT_ISA_AVX 1
 #define RAYKIT_ISA_FMA 1
 #define RAYKIT_ISA_AVX512 1
-#include "raykit/intersect/slab.hpp"
-#include "raykit/intersect/triangle4.hpp"
-#include "raykit/bvh/traverse.hpp"
-#include "raykit/bvh/traverse_wide.hpp"
-#include "raykit/bvh/traverse_packet.hpp"
-#include "raykit/scene/trace.hpp"
-#undef RAYKIT_ISA_NS
-#undef RAYKIT_ISA_SSE2
-#undef RAYKIT_ISA_SSE41
-#undef RAYKIT_ISA_AVX
-#undef RAYKIT_ISA_FMA
-#undef RAYKIT_ISA_AVX512
-#if defined(__clang__)
-#pragma clang attribute pop
-#else
-#pragma GCC pop_options
+#include "raykit/simd/level.inc"
+RAYKIT_ISA_END
 #endif
-#endif
+#undef RAYKIT_ISA_PRAGMA
+#undef RAYKIT_ISA_BEGIN
+#undef RAYKIT_ISA_END
 
 #undef RAYKIT_ISA_PASS
 
@@ -196,63 +152,15 @@ bool any_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep&
     RAYKIT_ISA_DISPATCH(any_hit(tree, leaves, ray, keep, stats))
 }
 
-namespace detail {
-/// The packet walk of one level over rays[0, n), n ≤ kPacketWidth, in packets of its own width.
-template <int Lanes, class Fn>
-RAYKIT_INLINE void split_packets(unsigned n, Fn&& fn) {
-    for (unsigned first = 0; first < n; first += unsigned(Lanes)) fn(first, n - first < unsigned(Lanes) ? n - first : unsigned(Lanes));
-}
-}  // namespace detail
-
 template <class Tree, class Leaves, class Keep>
 void closest_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, const float* tmax, unsigned n,
                         Hit* hits, const Keep& keep) {
-    const auto at = [&](auto lanes, auto walk) {
-        detail::split_packets<decltype(lanes)::value>(n, [&](unsigned first, unsigned k) {
-            walk(tree, leaves, rays + first, tmax ? tmax + first : nullptr, k, hits + first, keep);
-        });
-    };
-    switch (active_isa()) {
-#if RAYKIT_ISA_BUILD_AVX512
-        case Isa::avx512:
-            return at(std::integral_constant<int, isa_avx512::kPacketLanes>{},
-                      [](auto&&... a) { isa_avx512::closest_hit_packet(a...); });
-#endif
-#if RAYKIT_ISA_BUILD_AVX2
-        case Isa::avx2:
-            return at(std::integral_constant<int, isa_avx2::kPacketLanes>{},
-                      [](auto&&... a) { isa_avx2::closest_hit_packet(a...); });
-#endif
-        default:
-            return at(std::integral_constant<int, isa_base::kPacketLanes>{},
-                      [](auto&&... a) { isa_base::closest_hit_packet(a...); });
-    }
+    RAYKIT_ISA_DISPATCH(closest_hit_packet(tree, leaves, rays, tmax, n, hits, keep))
 }
 
 template <class Tree, class Leaves, class Keep>
 unsigned any_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, unsigned n, const Keep& keep) {
-    unsigned hit = 0;
-    const auto at = [&](auto lanes, auto walk) {
-        detail::split_packets<decltype(lanes)::value>(n, [&](unsigned first, unsigned k) {
-            hit |= walk(tree, leaves, rays + first, k, keep) << first;
-        });
-        return hit;
-    };
-    switch (active_isa()) {
-#if RAYKIT_ISA_BUILD_AVX512
-        case Isa::avx512:
-            return at(std::integral_constant<int, isa_avx512::kPacketLanes>{},
-                      [](auto&&... a) { return isa_avx512::any_hit_packet(a...); });
-#endif
-#if RAYKIT_ISA_BUILD_AVX2
-        case Isa::avx2:
-            return at(std::integral_constant<int, isa_avx2::kPacketLanes>{},
-                      [](auto&&... a) { return isa_avx2::any_hit_packet(a...); });
-#endif
-        default:
-            return at(std::integral_constant<int, isa_base::kPacketLanes>{},
-                      [](auto&&... a) { return isa_base::any_hit_packet(a...); });
-    }
+    RAYKIT_ISA_DISPATCH(any_hit_packet(tree, leaves, rays, n, keep))
 }
 
 }  // namespace raykit
