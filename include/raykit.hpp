@@ -3,9 +3,8 @@
 //
 // Layers (each includes only the ones above it in this list):
 //   util/, math/     vectors, AABB, ray, hit, float utilities, the executor, radix sort
-//   simd/            the instruction-set levels (isa.hpp) and dispatch.hpp, which each traversal
-//                    header below (slab, triangle4, traverse*, scene/trace) includes first: it
-//                    compiles their walks once per level and picks the CPU's at run time
+//   simd/            the instruction-set levels and the CPU's (isa.hpp; scene/trace.hpp compiles
+//                    the walks once per level and calls the CPU's)
 //   intersect/       slab test, triangle tests (Watertight default, MollerTrumbore, ThesisTest)
 //   bvh/             node layout, builders, SAH cost, validate, traverse, refit
 //   scene/           mesh, skeleton and skin data, building a BVH over a mesh, closest/any-hit queries
@@ -27,7 +26,6 @@
 #include "raykit/math/offset.hpp"
 #include "raykit/math/limits.hpp"
 #include "raykit/simd/isa.hpp"
-#include "raykit/simd/dispatch.hpp"
 #include "raykit/intersect/slab.hpp"
 #include "raykit/intersect/triangle.hpp"
 #include "raykit/intersect/triangle4.hpp"

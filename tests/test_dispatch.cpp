@@ -1,4 +1,4 @@
-// The instruction-set levels the traversals dispatch to (raykit/simd/isa.hpp, simd/dispatch.hpp),
+// The instruction-set levels the traversals dispatch to (raykit/simd/isa.hpp, scene/trace.hpp),
 // from a build for baseline x86-64 as a consumer's default build is: every level is compiled in,
 // and each one this CPU runs traces the same rays through every tree shape, leaf store, batch
 // and scene. Every level must give brute force's answer (the scalar watertight test) and the

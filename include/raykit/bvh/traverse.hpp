@@ -14,12 +14,9 @@
 // closest hits, and returns true when it found a hit; with AnyHit = true the
 // walk stops at the first leaf that returns true.
 //
-// The walk is compiled once per instruction-set level (raykit/simd/dispatch.hpp): the part of
-// this header below RAYKIT_ISA_PASS is its per-level part; raykit::traverse calls the level the
-// CPU runs.
-#ifndef RAYKIT_ISA_PASS
-#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
-#endif
+// The walk is compiled once per instruction-set level: the part of this header below
+// RAYKIT_ISA_PASS is its per-level part (scene/trace_level.inc includes it per level), and
+// raykit::traverse, which calls the CPU's level, is in scene/trace.hpp.
 #ifndef RAYKIT_BVH_TRAVERSE_HPP
 #define RAYKIT_BVH_TRAVERSE_HPP
 

@@ -26,12 +26,10 @@
 //
 // Stack: as the single-ray walk, at most W − 1 entries per wide level.
 //
-// The walk is compiled once per instruction-set level (raykit/simd/dispatch.hpp): the part of
-// this header below RAYKIT_ISA_PASS is its per-level part. A level walks kPacketLanes rays at
-// once (16 with AVX-512, else 8); callers hand out kPacketWidth (16) and the dispatch splits.
-#ifndef RAYKIT_ISA_PASS
-#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
-#endif
+// The walk is compiled once per instruction-set level: the part of this header below
+// RAYKIT_ISA_PASS is its per-level part (scene/trace_level.inc includes it per level; the
+// public packet walks are scene/trace.hpp's). A level walks kPacketLanes rays at once (16 with
+// AVX-512, else 8); callers hand out kPacketWidth (16) and each level splits them.
 #ifndef RAYKIT_BVH_TRAVERSE_PACKET_HPP
 #define RAYKIT_BVH_TRAVERSE_PACKET_HPP
 

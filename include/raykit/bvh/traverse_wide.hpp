@@ -21,12 +21,10 @@
 // than its binary tree (≤ RAYKIT_BVH_MAX_DEPTH for raykit's builders); a deeper
 // tree from elsewhere makes traverse throw instead of overflowing.
 //
-// WideSlabRay and the walk are compiled once per instruction-set level
-// (raykit/simd/dispatch.hpp): the part of this header below RAYKIT_ISA_PASS is
-// their per-level part; raykit::traverse calls the level the CPU runs.
-#ifndef RAYKIT_ISA_PASS
-#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
-#endif
+// WideSlabRay and the walk are compiled once per instruction-set level: the part
+// of this header below RAYKIT_ISA_PASS is their per-level part (scene/trace_level.inc
+// includes it per level), and raykit::traverse, which calls the CPU's level, is in
+// scene/trace.hpp.
 #ifndef RAYKIT_BVH_TRAVERSE_WIDE_HPP
 #define RAYKIT_BVH_TRAVERSE_WIDE_HPP
 

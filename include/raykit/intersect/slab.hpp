@@ -9,11 +9,9 @@
 // is widened the same way, so a box whose entry equals the current closest hit
 // (a tie) is still visited.
 //
-// SlabRay is compiled once per instruction-set level (raykit/simd/dispatch.hpp): the part of this
-// header below RAYKIT_ISA_PASS is its per-level part.
-#ifndef RAYKIT_ISA_PASS
-#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
-#endif
+// SlabRay is compiled once per instruction-set level (scene/trace.hpp): the part of this
+// header below RAYKIT_ISA_PASS is its per-level part, included per level by scene/trace_level.inc;
+// raykit::SlabRay is the base level's.
 #ifndef RAYKIT_INTERSECT_SLAB_HPP
 #define RAYKIT_INTERSECT_SLAB_HPP
 

@@ -19,17 +19,15 @@
 //
 // With AVX and FMA the edge functions take one 4-lane double operation each; without
 // them (or with RAYKIT_NO_SIMD) the lanes run through the scalar test. Watertight4 is
-// compiled once per instruction-set level (raykit/simd/dispatch.hpp): the part of this header
-// below RAYKIT_ISA_PASS is its per-level part.
+// compiled once per instruction-set level: the part of this header below
+// RAYKIT_ISA_PASS is its per-level part (scene/trace_level.inc includes it per level;
+// raykit::Watertight4 is the base level's, scene/trace.hpp).
 //
 // A block is 160 bytes: 9 planes of 4 floats (corner c, axis a at p[3c + a])
 // and the 4 triangle indices. Blocks hold copies of vertices: they are made
 // for tracing (scene/block_bvh.hpp) and must be remade after vertices move.
 // Unused lanes repeat a used lane (same triangle, same index), which changes
 // no answer.
-#ifndef RAYKIT_ISA_PASS
-#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
-#endif
 #ifndef RAYKIT_INTERSECT_TRIANGLE4_HPP
 #define RAYKIT_INTERSECT_TRIANGLE4_HPP
 

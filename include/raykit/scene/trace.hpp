@@ -31,12 +31,20 @@
 // Ties (two triangles at the same t) go to the smaller triangle index, so the answer does not
 // depend on the tree, the shape or the leaf store.
 //
-// The walks and BlockLeaves' leaf loop are compiled once per instruction-set level
-// (raykit/simd/dispatch.hpp): the part of this header below RAYKIT_ISA_PASS is their per-level
-// part, and raykit::closest_hit & co. (declared here, defined there) call the level the CPU runs.
-#ifndef RAYKIT_ISA_PASS
-#include "raykit/simd/dispatch.hpp"  // first: it includes this part below, then the per-level parts
-#endif
+// Instruction-set levels (raykit/simd/isa.hpp says why): the walks, the box and block tests and
+// BlockLeaves' leaf loop are compiled once per level the compiler's flags do not already give —
+// base, avx2, avx512 — each copy in namespace raykit::isa_<level> under a target pragma (GCC's
+// `target`, clang's attribute push). The copy is scene/trace_level.inc, which includes the
+// per-level parts of intersect/slab.hpp, intersect/triangle4.hpp and the three bvh/traverse
+// headers (what stands below RAYKIT_ISA_PASS there) with RAYKIT_ISA_SSE2 / SSE41 / AVX / FMA /
+// AVX512 saying what the level has. raykit::closest_hit & co. (declared below, defined at the
+// end) switch on active_isa() and call their level's copy: one load and a predictable branch
+// per call. Only those parts are compiled under a target pragma (every other header is
+// included before), so no inline function of the standard library or of GLM is ever emitted
+// with instructions the CPU may lack. Not Highway: its dynamic dispatch (HWY_EXPORT) takes
+// plain functions, and these walks are templates over the caller's leaf filter; and the box
+// tests rely on MAXPS/MINPS returning their second operand on NaN (intersect/slab.hpp), which
+// the hand-written intrinsics keep.
 #ifndef RAYKIT_SCENE_TRACE_HPP
 #define RAYKIT_SCENE_TRACE_HPP
 
@@ -54,6 +62,7 @@
 #include "raykit/intersect/triangle4.hpp"
 #include "raykit/math/hit.hpp"
 #include "raykit/scene/mesh.hpp"
+#include "raykit/simd/isa.hpp"
 
 namespace raykit {
 
@@ -218,165 +227,143 @@ bool brute_force_any(const MeshView& mesh, const Ray& ray) {
 
 }  // namespace raykit
 
+// ---- the per-level copies (scene/trace_level.inc) and the public walks that pick one ----
+
+#define RAYKIT_ISA_PASS 1
+
+// ---- base: what the compiler's flags give ----
+#define RAYKIT_ISA_NS isa_base
+#if !defined(RAYKIT_NO_SIMD) && (defined(__SSE2__) || defined(_M_X64))
+#define RAYKIT_ISA_SSE2 1
+#else
+#define RAYKIT_ISA_SSE2 0
+#endif
+#if !defined(RAYKIT_NO_SIMD) && defined(__SSE4_1__)
+#define RAYKIT_ISA_SSE41 1
+#else
+#define RAYKIT_ISA_SSE41 0
+#endif
+#if !defined(RAYKIT_NO_SIMD) && defined(__AVX__)
+#define RAYKIT_ISA_AVX 1
+#else
+#define RAYKIT_ISA_AVX 0
+#endif
+#if !defined(RAYKIT_NO_SIMD) && defined(__FMA__)
+#define RAYKIT_ISA_FMA 1
+#else
+#define RAYKIT_ISA_FMA 0
+#endif
+#if !defined(RAYKIT_NO_SIMD) && defined(__AVX512F__)
+#define RAYKIT_ISA_AVX512 1
+#else
+#define RAYKIT_ISA_AVX512 0
+#endif
+#include "raykit/scene/trace_level.inc"
+
+// ---- avx2 (x86-64-v3) and avx512 (AVX-512 F/VL/BW/DQ over it), each under its target ----
+#define RAYKIT_ISA_PRAGMA(...) _Pragma(#__VA_ARGS__)
+#if defined(__clang__)
+#define RAYKIT_ISA_BEGIN(features) RAYKIT_ISA_PRAGMA(clang attribute push(__attribute__((target(features))), apply_to = function))
+#define RAYKIT_ISA_END RAYKIT_ISA_PRAGMA(clang attribute pop)
+#else
+#define RAYKIT_ISA_BEGIN(features) RAYKIT_ISA_PRAGMA(GCC push_options) RAYKIT_ISA_PRAGMA(GCC target(features))
+#define RAYKIT_ISA_END RAYKIT_ISA_PRAGMA(GCC pop_options)
+#endif
+#if RAYKIT_ISA_BUILD_AVX2
+RAYKIT_ISA_BEGIN("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2")
+#define RAYKIT_ISA_NS isa_avx2
+#define RAYKIT_ISA_SSE2 1
+#define RAYKIT_ISA_SSE41 1
+#define RAYKIT_ISA_AVX 1
+#define RAYKIT_ISA_FMA 1
+#define RAYKIT_ISA_AVX512 0
+#include "raykit/scene/trace_level.inc"
+RAYKIT_ISA_END
+#endif
+#if RAYKIT_ISA_BUILD_AVX512
+RAYKIT_ISA_BEGIN("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2,avx512f,avx512vl,avx512bw,avx512dq")
+#define RAYKIT_ISA_NS isa_avx512
+#define RAYKIT_ISA_SSE2 1
+#define RAYKIT_ISA_SSE41 1
+#define RAYKIT_ISA_AVX 1
+#define RAYKIT_ISA_FMA 1
+#define RAYKIT_ISA_AVX512 1
+#include "raykit/scene/trace_level.inc"
+RAYKIT_ISA_END
+#endif
+#undef RAYKIT_ISA_PRAGMA
+#undef RAYKIT_ISA_BEGIN
+#undef RAYKIT_ISA_END
+
+#undef RAYKIT_ISA_PASS
+
+/// `return <level namespace>::CALL;` for the level active_isa() names.
+#if RAYKIT_ISA_BUILD_AVX512
+#define RAYKIT_ISA_CASE_AVX512(...) \
+    case ::raykit::Isa::avx512:     \
+        return ::raykit::isa_avx512::__VA_ARGS__;
+#else
+#define RAYKIT_ISA_CASE_AVX512(...)
+#endif
+#if RAYKIT_ISA_BUILD_AVX2
+#define RAYKIT_ISA_CASE_AVX2(...) \
+    case ::raykit::Isa::avx2:     \
+        return ::raykit::isa_avx2::__VA_ARGS__;
+#else
+#define RAYKIT_ISA_CASE_AVX2(...)
+#endif
+#if RAYKIT_ISA_BUILD_AVX2 || RAYKIT_ISA_BUILD_AVX512
+#define RAYKIT_ISA_DISPATCH(...)                    \
+    switch (::raykit::active_isa()) {               \
+        RAYKIT_ISA_CASE_AVX512(__VA_ARGS__)         \
+        RAYKIT_ISA_CASE_AVX2(__VA_ARGS__)           \
+        default:                                    \
+            return ::raykit::isa_base::__VA_ARGS__; \
+    }
+#else
+#define RAYKIT_ISA_DISPATCH(...) return ::raykit::isa_base::__VA_ARGS__;
+#endif
+
+namespace raykit {
+
+// The per-ray state types, as the base level has them (tests compare them with their scalar forms).
+using isa_base::SlabRay;
+using isa_base::Watertight4;
+using isa_base::WideSlabRay;
+
+/// Ordered single-ray walk of a Bvh or WideBvhT (bvh/traverse.hpp, bvh/traverse_wide.hpp).
+template <class Mode = ClosestHit, class Tree, class LeafFn, class Stats = std::nullptr_t>
+bool traverse(const Tree& tree, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
+    RAYKIT_ISA_DISPATCH(traverse<Mode>(tree, ray, tmax, leaf, stats))
+}
+
+template <class Tree, class Leaves, class Keep, class Stats>
+Hit closest_hit_within(const Tree& tree, const Leaves& leaves, const Ray& ray, float tmax, const Keep& keep,
+                       Stats stats) {
+    RAYKIT_ISA_DISPATCH(closest_hit_within(tree, leaves, ray, tmax, keep, stats))
+}
+
+template <class Tree, class Leaves, class Keep, class Stats>
+Hit closest_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep, Stats stats) {
+    RAYKIT_ISA_DISPATCH(closest_hit_within(tree, leaves, ray, ray.tmax, keep, stats))
+}
+
+template <class Tree, class Leaves, class Keep, class Stats>
+bool any_hit(const Tree& tree, const Leaves& leaves, const Ray& ray, const Keep& keep, Stats stats) {
+    RAYKIT_ISA_DISPATCH(any_hit(tree, leaves, ray, keep, stats))
+}
+
+template <class Tree, class Leaves, class Keep>
+void closest_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, const float* tmax, unsigned n,
+                        Hit* hits, const Keep& keep) {
+    RAYKIT_ISA_DISPATCH(closest_hit_packet(tree, leaves, rays, tmax, n, hits, keep))
+}
+
+template <class Tree, class Leaves, class Keep>
+unsigned any_hit_packet(const Tree& tree, const Leaves& leaves, const Ray* rays, unsigned n, const Keep& keep) {
+    RAYKIT_ISA_DISPATCH(any_hit_packet(tree, leaves, rays, n, keep))
+}
+
+}  // namespace raykit
+
 #endif  // RAYKIT_SCENE_TRACE_HPP
-
-#ifdef RAYKIT_ISA_PASS
-namespace raykit::RAYKIT_ISA_NS {
-
-/// BlockLeaves with this level's 4-lane test.
-struct BlockLeaves {
-    const TriangleBlock4* RAYKIT_RESTRICT blocks;
-
-    using RayData = Watertight4::RayData;
-    RAYKIT_INLINE static RayData prepare(const Ray& r) noexcept { return Watertight4::prepare(r); }
-
-    template <class Keep, class Stats>
-    RAYKIT_INLINE bool closest(const RayData& rd, const Ray& ray, std::uint32_t first, std::uint32_t count,
-                               float& tm, Hit& hit, const Keep& keep, Stats) const {
-        bool found = false;
-        for (std::uint32_t k = first; k < first + count; ++k) {
-            alignas(16) float t[4], u[4], v[4];
-            unsigned m = Watertight4::intersect(rd, blocks[k], ray.tmin, tm, t, u, v);
-            while (m) {  // lanes in order, as a scalar loop over the leaf's triangles
-                const int i = std::countr_zero(m);
-                m &= m - 1;
-                if (t[i] <= tm) found |= raykit::detail::take_closer(hit, tm, t[i], u[i], v[i], blocks[k].prim[i], keep);
-            }
-        }
-        return found;
-    }
-    template <class Keep, class Stats>
-    RAYKIT_INLINE bool any(const RayData& rd, const Ray& ray, std::uint32_t first, std::uint32_t count,
-                           const Keep& keep, Stats) const {
-        for (std::uint32_t k = first; k < first + count; ++k) {
-            alignas(16) float t[4], u[4], v[4];
-            unsigned m = Watertight4::intersect(rd, blocks[k], ray.tmin, ray.tmax, t, u, v);
-            if constexpr (!kFilters<Keep>) {
-                if (m) return true;
-            } else {
-                while (m) {
-                    const int i = std::countr_zero(m);
-                    m &= m - 1;
-                    if (keep(blocks[k].prim[i], u[i], v[i])) return true;
-                }
-            }
-        }
-        return false;
-    }
-};
-
-/// A leaf store as this level tests it: raykit::BlockLeaves becomes this level's BlockLeaves;
-/// the others are used as they are.
-template <class L>
-RAYKIT_INLINE const L& at_level(const L& l) noexcept {
-    return l;
-}
-RAYKIT_INLINE BlockLeaves at_level(const raykit::BlockLeaves& l) noexcept { return {l.blocks}; }
-
-// The walks of raykit::closest_hit & co. (trace.hpp's declarations above) at this level; the
-// calls between them are qualified, since the public ones are found by argument lookup too.
-
-template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
-Hit closest_hit_within(const Tree& tree, const Leaves& leaves_in, const Ray& ray, float tmax, const Keep& keep = {},
-                       Stats stats = nullptr) {
-    const auto& leaves = RAYKIT_ISA_NS::at_level(leaves_in);
-    using L = std::remove_cvref_t<decltype(leaves)>;
-    const typename L::RayData rd = L::prepare(ray);
-    Hit hit;
-    RAYKIT_ISA_NS::traverse<ClosestHit>(
-        tree, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float& tm) RAYKIT_LAMBDA_INLINE {
-            return leaves.closest(rd, ray, first, count, tm, hit, keep, stats);
-        },
-        stats);
-    return hit;
-}
-
-template <class Tree, class Leaves, class Keep = AcceptAll, class Stats = std::nullptr_t>
-bool any_hit(const Tree& tree, const Leaves& leaves_in, const Ray& ray, const Keep& keep = {}, Stats stats = nullptr) {
-    const auto& leaves = RAYKIT_ISA_NS::at_level(leaves_in);
-    using L = std::remove_cvref_t<decltype(leaves)>;
-    const typename L::RayData rd = L::prepare(ray);
-    float tmax = ray.tmax;
-    return RAYKIT_ISA_NS::traverse<AnyHit>(
-        tree, ray, tmax,
-        [&](std::uint32_t first, std::uint32_t count, float&) RAYKIT_LAMBDA_INLINE {
-            return leaves.any(rd, ray, first, count, keep, stats);
-        },
-        stats);
-}
-
-/// closest_hit_packet on n ≤ kPacketLanes rays: one packet walk.
-template <class Tree, class Leaves, class Keep>
-RAYKIT_INLINE void packet_closest(const Tree& tree, const Leaves& leaves, const Ray* rays, const float* tmax,
-                                  unsigned n, Hit* hits, const Keep& keep) {
-    if (!kPacketTree<Tree> || n < 2 || !one_octant(rays, n)) {
-        for (unsigned k = 0; k < n; ++k)
-            hits[k] = RAYKIT_ISA_NS::closest_hit_within(tree, leaves, rays[k], tmax ? tmax[k] : rays[k].tmax, keep);
-    } else if constexpr (kPacketTree<Tree>) {
-        RayPacket<> p(rays, n);
-        typename Leaves::RayData rd[kPacketLanes];
-        for (unsigned k = 0; k < n; ++k) {
-            if (tmax) p.tmax[k] = tmax[k];
-            hits[k] = Hit{};
-            rd[k] = Leaves::prepare(rays[k]);
-        }
-        const auto leaf = [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
-            for (; m; m &= m - 1) {
-                const int k = std::countr_zero(m);
-                leaves.closest(rd[k], rays[k], first, count, p.tmax[k], hits[k], keep, nullptr);
-            }
-            return 0u;
-        };
-        RAYKIT_ISA_NS::traverse_packet<ClosestHit>(tree, p, (1u << n) - 1, leaf);
-    }
-}
-
-/// any_hit_packet on n ≤ kPacketLanes rays: one packet walk.
-template <class Tree, class Leaves, class Keep>
-RAYKIT_INLINE unsigned packet_any(const Tree& tree, const Leaves& leaves, const Ray* rays, unsigned n,
-                                  const Keep& keep) {
-    if (!kPacketTree<Tree> || n < 2 || !one_octant(rays, n)) {
-        unsigned hit = 0;
-        for (unsigned k = 0; k < n; ++k) hit |= unsigned(RAYKIT_ISA_NS::any_hit(tree, leaves, rays[k], keep)) << k;
-        return hit;
-    } else if constexpr (kPacketTree<Tree>) {
-        const RayPacket<> p(rays, n);
-        typename Leaves::RayData rd[kPacketLanes];
-        for (unsigned k = 0; k < n; ++k) rd[k] = Leaves::prepare(rays[k]);
-        const auto leaf = [&](std::uint32_t first, std::uint32_t count, unsigned m) RAYKIT_LAMBDA_INLINE {
-            unsigned done = 0;
-            for (; m; m &= m - 1) {
-                const int k = std::countr_zero(m);
-                if (leaves.any(rd[k], rays[k], first, count, keep, nullptr)) done |= 1u << k;
-            }
-            return done;
-        };
-        return RAYKIT_ISA_NS::traverse_packet<AnyHit>(tree, p, (1u << n) - 1, leaf);
-    }
-    return 0;
-}
-
-/// n ≤ kPacketWidth rays, in packets of this level's kPacketLanes.
-template <class Tree, class Leaves, class Keep = AcceptAll>
-void closest_hit_packet(const Tree& tree, const Leaves& leaves_in, const Ray* rays, const float* tmax, unsigned n,
-                        Hit* hits, const Keep& keep = {}) {
-    const auto& leaves = RAYKIT_ISA_NS::at_level(leaves_in);
-    for (unsigned first = 0; first < n; first += unsigned(kPacketLanes))
-        RAYKIT_ISA_NS::packet_closest(tree, leaves, rays + first, tmax ? tmax + first : nullptr,
-                                      std::min(n - first, unsigned(kPacketLanes)), hits + first, keep);
-}
-
-/// n ≤ kPacketWidth rays, in packets of this level's kPacketLanes.
-template <class Tree, class Leaves, class Keep = AcceptAll>
-unsigned any_hit_packet(const Tree& tree, const Leaves& leaves_in, const Ray* rays, unsigned n, const Keep& keep = {}) {
-    const auto& leaves = RAYKIT_ISA_NS::at_level(leaves_in);
-    unsigned hit = 0;
-    for (unsigned first = 0; first < n; first += unsigned(kPacketLanes))
-        hit |= RAYKIT_ISA_NS::packet_any(tree, leaves, rays + first, std::min(n - first, unsigned(kPacketLanes)), keep)
-               << first;
-    return hit;
-}
-
-}  // namespace raykit::RAYKIT_ISA_NS
-#endif  // RAYKIT_ISA_PASS

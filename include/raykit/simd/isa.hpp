@@ -2,7 +2,7 @@
 //
 // raykit is header-only and its target adds no architecture flags, so a consumer built with
 // plain -O2 compiles for baseline x86-64 (SSE2). The traversal code (slab and triangle tests,
-// the wide and packet walks, the leaf stores: raykit/simd/dispatch.hpp) is therefore compiled
+// the wide and packet walks, the leaf stores: scene/trace.hpp) is therefore compiled
 // once per level below that the compiler's own flags do not already cover, each copy in its own
 // namespace under a target pragma, and every public walk calls the copy of the best level the
 // running CPU has. Measured before this (bench_trace, bunny camera rays, one thread, AVX-512
