@@ -15,6 +15,9 @@
 //    point against each edge with a cross product and a fixed tolerance. The
 //    tolerance is absolute, so it leaks (misses) on large triangles and admits
 //    false hits next to tiny ones; kept as an accuracy baseline.
+// Every multiply-add of the three is written out and rounded by the one FMA rule
+// (RAYKIT_FMA, config.hpp: fused), so a test answers the same in every build and at
+// every instruction-set level the walks dispatch to.
 //
 // All three return no hit for degenerate (zero-area) triangles and for any
 // NaN/inf vertex. u, v are the barycentric weights of p1 and p2.
@@ -128,6 +131,25 @@ struct Watertight {
     }
 };
 
+namespace detail {
+/// a·b + c rounded by the one FMA rule (config.hpp's RAYKIT_FMA): fused, written out, so no
+/// test's answer depends on what the compiler contracts (it contracts inside the per-level
+/// copies of the walks that have FMA, scene/trace.hpp, and not in a default build's base code).
+RAYKIT_INLINE float madd(float a, float b, float c) noexcept {
+#if RAYKIT_FMA
+    return std::fma(a, b, c);
+#else
+    return a * b + c;
+#endif
+}
+/// dot(a, b) as madd(ax, bx, madd(ay, by, az·bz)).
+RAYKIT_INLINE float mdot(const vec3& a, const vec3& b) noexcept { return madd(a.x, b.x, madd(a.y, b.y, a.z * b.z)); }
+/// cross(a, b), each component one madd.
+RAYKIT_INLINE vec3 mcross(const vec3& a, const vec3& b) noexcept {
+    return {madd(a.y, b.z, -(a.z * b.y)), madd(a.z, b.x, -(a.x * b.z)), madd(a.x, b.y, -(a.y * b.x))};
+}
+}  // namespace detail
+
 struct MollerTrumbore {
     struct RayData {
         vec3 org, dir;
@@ -135,18 +157,19 @@ struct MollerTrumbore {
     static RayData prepare(const Ray& r) noexcept { return {r.org, r.dir}; }
     static RAYKIT_INLINE bool intersect(const RayData& d, const vec3& p0, const vec3& p1,
                                         const vec3& p2, float tmin, float tmax, TriHit& out) noexcept {
+        using detail::mcross, detail::mdot;
         const vec3 e1 = p1 - p0, e2 = p2 - p0;
-        const vec3 pv = glm::cross(d.dir, e2);
-        const float det = glm::dot(e1, pv);
+        const vec3 pv = mcross(d.dir, e2);
+        const float det = mdot(e1, pv);
         if (!(det != 0.0f)) return false;
         const float inv = 1.0f / det;
         const vec3 tv = d.org - p0;
-        const float u = glm::dot(tv, pv) * inv;
+        const float u = mdot(tv, pv) * inv;
         if (!(u >= 0.0f && u <= 1.0f)) return false;
-        const vec3 qv = glm::cross(tv, e1);
-        const float v = glm::dot(d.dir, qv) * inv;
+        const vec3 qv = mcross(tv, e1);
+        const float v = mdot(d.dir, qv) * inv;
         if (!(v >= 0.0f && u + v <= 1.0f)) return false;
-        const float t = glm::dot(e2, qv) * inv;
+        const float t = mdot(e2, qv) * inv;
         if (!(t >= tmin && t <= tmax)) return false;
         if (Watertight::degenerate(p0, p1, p2)) return false;  // det from the ray can round away from 0
         out = {t, u, v};
@@ -166,23 +189,24 @@ struct ThesisTest {
     static RayData prepare(const Ray& r) noexcept { return {r.org, r.dir}; }
     static RAYKIT_INLINE bool intersect(const RayData& d, const vec3& p0, const vec3& p1,
                                         const vec3& p2, float tmin, float tmax, TriHit& out) noexcept {
-        const vec3 n = glm::cross(p1 - p0, p2 - p0);
-        const float len2 = glm::dot(n, n);
+        using detail::madd, detail::mcross, detail::mdot;
+        const vec3 n = mcross(p1 - p0, p2 - p0);
+        const float len2 = mdot(n, n);
         // |n|^2 leaves float range for edges beyond ~4e9 (every outside ray
         // then "hit", nu being 0) or below ~1e-10: only then take it in double
         const float len = len2 > 0.0f && len2 <= std::numeric_limits<float>::max()
                               ? std::sqrt(len2)
                               : static_cast<float>(std::min(std::sqrt(double(n.x) * n.x + double(n.y) * n.y + double(n.z) * n.z),
                                                             double(std::numeric_limits<float>::max())));
-        const float denom = glm::dot(n, d.dir);
+        const float denom = mdot(n, d.dir);
         if (!(denom != 0.0f) || !(len > 0.0f)) return false;
-        const float t = glm::dot(n, p0 - d.org) / denom;
+        const float t = mdot(n, p0 - d.org) / denom;
         if (!(t >= tmin && t <= tmax)) return false;
-        const vec3 p = d.org + t * d.dir;
+        const vec3 p(madd(t, d.dir.x, d.org.x), madd(t, d.dir.y, d.org.y), madd(t, d.dir.z, d.org.z));
         const vec3 nu = n / len;
-        const float c0 = glm::dot(glm::cross(p1 - p0, p - p0), nu);
-        const float c1 = glm::dot(glm::cross(p2 - p1, p - p1), nu);
-        const float c2 = glm::dot(glm::cross(p0 - p2, p - p2), nu);
+        const float c0 = mdot(mcross(p1 - p0, p - p0), nu);
+        const float c1 = mdot(mcross(p2 - p1, p - p1), nu);
+        const float c2 = mdot(mcross(p0 - p2, p - p2), nu);
         if (!(c0 >= -kTolerance && c1 >= -kTolerance && c2 >= -kTolerance)) return false;
         // c1 ~ weight of p0, c2 ~ weight of p1, c0 ~ weight of p2 (each times |n|)
         out = {t, c2 / len, c0 / len};
