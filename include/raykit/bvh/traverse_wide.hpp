@@ -149,7 +149,7 @@ struct WideSlabRay {
 };
 
 template <class Mode = ClosestHit, int W, class LeafFn, class Stats = std::nullptr_t>
-bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
+RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
     if (bvh.nodes.empty()) return false;
     const WideNodeT<W>* RAYKIT_RESTRICT nodes = bvh.nodes.data();
     const WideSlabRay wr(ray);

@@ -334,7 +334,7 @@ using isa_base::WideSlabRay;
 /// Ordered single-ray walk of a Bvh or WideBvhT (bvh/traverse.hpp, bvh/traverse_wide.hpp).
 template <class Mode = ClosestHit, class Tree, class LeafFn, class Stats = std::nullptr_t>
 bool traverse(const Tree& tree, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
-    RAYKIT_ISA_DISPATCH(traverse<Mode>(tree, ray, tmax, leaf, stats))
+    RAYKIT_ISA_DISPATCH(traverse_entry<Mode>(tree, ray, tmax, leaf, stats))
 }
 
 template <class Tree, class Leaves, class Keep, class Stats>
