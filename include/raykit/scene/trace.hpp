@@ -231,36 +231,6 @@ bool brute_force_any(const MeshView& mesh, const Ray& ray) {
 
 #define RAYKIT_ISA_PASS 1
 
-// ---- base: what the compiler's flags give ----
-#define RAYKIT_ISA_NS isa_base
-#if !defined(RAYKIT_NO_SIMD) && (defined(__SSE2__) || defined(_M_X64))
-#define RAYKIT_ISA_SSE2 1
-#else
-#define RAYKIT_ISA_SSE2 0
-#endif
-#if !defined(RAYKIT_NO_SIMD) && defined(__SSE4_1__)
-#define RAYKIT_ISA_SSE41 1
-#else
-#define RAYKIT_ISA_SSE41 0
-#endif
-#if !defined(RAYKIT_NO_SIMD) && defined(__AVX__)
-#define RAYKIT_ISA_AVX 1
-#else
-#define RAYKIT_ISA_AVX 0
-#endif
-#if !defined(RAYKIT_NO_SIMD) && defined(__FMA__)
-#define RAYKIT_ISA_FMA 1
-#else
-#define RAYKIT_ISA_FMA 0
-#endif
-#if !defined(RAYKIT_NO_SIMD) && defined(__AVX512F__)
-#define RAYKIT_ISA_AVX512 1
-#else
-#define RAYKIT_ISA_AVX512 0
-#endif
-#include "raykit/scene/trace_level.inc"
-
-// ---- avx2 (x86-64-v3) and avx512 (AVX-512 F/VL/BW/DQ over it), each under its target ----
 #define RAYKIT_ISA_PRAGMA(...) _Pragma(#__VA_ARGS__)
 #if defined(__clang__)
 #define RAYKIT_ISA_BEGIN(features) RAYKIT_ISA_PRAGMA(clang attribute push(__attribute__((target(features))), apply_to = function))
@@ -269,25 +239,22 @@ bool brute_force_any(const MeshView& mesh, const Ray& ray) {
 #define RAYKIT_ISA_BEGIN(features) RAYKIT_ISA_PRAGMA(GCC push_options) RAYKIT_ISA_PRAGMA(GCC target(features))
 #define RAYKIT_ISA_END RAYKIT_ISA_PRAGMA(GCC pop_options)
 #endif
+// base: what the compiler's flags give; avx2 (x86-64-v3) and avx512 (AVX-512 F/VL/BW/DQ over
+// it), each under its target (trace_level.inc turns RAYKIT_ISA_LEVEL into feature macros)
+#define RAYKIT_ISA_NS isa_base
+#define RAYKIT_ISA_LEVEL 0
+#include "raykit/scene/trace_level.inc"
 #if RAYKIT_ISA_BUILD_AVX2
 RAYKIT_ISA_BEGIN("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2")
 #define RAYKIT_ISA_NS isa_avx2
-#define RAYKIT_ISA_SSE2 1
-#define RAYKIT_ISA_SSE41 1
-#define RAYKIT_ISA_AVX 1
-#define RAYKIT_ISA_FMA 1
-#define RAYKIT_ISA_AVX512 0
+#define RAYKIT_ISA_LEVEL 1
 #include "raykit/scene/trace_level.inc"
 RAYKIT_ISA_END
 #endif
 #if RAYKIT_ISA_BUILD_AVX512
 RAYKIT_ISA_BEGIN("sse4.1,sse4.2,popcnt,avx,avx2,fma,bmi,bmi2,avx512f,avx512vl,avx512bw,avx512dq")
 #define RAYKIT_ISA_NS isa_avx512
-#define RAYKIT_ISA_SSE2 1
-#define RAYKIT_ISA_SSE41 1
-#define RAYKIT_ISA_AVX 1
-#define RAYKIT_ISA_FMA 1
-#define RAYKIT_ISA_AVX512 1
+#define RAYKIT_ISA_LEVEL 2
 #include "raykit/scene/trace_level.inc"
 RAYKIT_ISA_END
 #endif
