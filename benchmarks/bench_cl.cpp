@@ -7,9 +7,15 @@
 // Cases (items/s = rays/s for traces; counters in ms where named so):
 //   cl_trace/<scene>/<rays>/<closest|any>/device       MeshTracer (8-wide nodes over 4-triangle
 //                                                      blocks, cl/device_tree.hpp), rays resident on
-//                                                      the device, one launch per iteration
+//                                                      the device, one launch per iteration, packets
+//                                                      of 16 rays (kernels/raykit/kernels/
+//                                                      trace_packet.hpp; one ray per work-item where
+//                                                      the device is not a CPU)
+//   cl_trace/<scene>/<rays>/<closest|any>/device_single the same, one ray per work-item
 //   cl_trace/<scene>/<rays>/<closest|any>/cpu_blocks8/threads:2  the CPU's fastest path on the
 //                                                      same tree (BlockBvh8::make of the same Bvh)
+//   cl_trace/<scene>/<rays>/<closest|any>/cpu_batch8/threads:2  the same tree through the batch
+//                                                      call (packets of 16, bvh/traverse_packet.hpp)
 //   cl_trace/<scene>/<rays>/<closest|any>/cpu/threads:2 intersect_closest / intersect_any over
 //                                                      2 std::threads (rkbench::trace_parallel)
 //       counter cpu_ms: process CPU time per iteration (all threads, PoCL's too): on a
@@ -97,12 +103,14 @@ TraceSetup& trace_setup(rcl::Device& dev, const rkbench::Scene& s, const std::st
     return *slot;
 }
 
-void BM_TraceDevice(benchmark::State& state, const std::string& scene, const std::string& set, bool any) {
+void BM_TraceDevice(benchmark::State& state, const std::string& scene, const std::string& set, bool any,
+                    bool packets) {
     rcl::Device* dev = device_or_skip(state);
     if (!dev) return;
     const rkbench::Scene* s = rkbench::scene_or_skip(state, scene);
     if (!s) return;
     TraceSetup& t = trace_setup(*dev, *s, set);
+    t.tracer->set_packet_walk(packets);
     const std::size_t n = t.rays.size();
     // warm-up launch: PoCL compiles the kernel on its first launch
     any ? t.tracer->any(t.rays, t.occluded, n) : t.tracer->closest(t.rays, t.hits, n);
@@ -333,7 +341,8 @@ void BM_FrameCpu(benchmark::State& state) {
 
 /// The CPU's fastest path on the device's tree: BlockBvh8::build(mesh, raykit_bvh(s)), the
 /// 8-wide nodes and 4-triangle blocks MeshTracer uploads (cl/device_tree.hpp).
-void BM_TraceCpuBlocks(benchmark::State& state, const std::string& scene, const std::string& set, bool any) {
+void BM_TraceCpuBlocks(benchmark::State& state, const std::string& scene, const std::string& set, bool any,
+                       bool batch) {
     const rkbench::Scene* s = rkbench::scene_or_skip(state, scene);
     if (!s) return;
     static std::map<std::string, std::unique_ptr<raykit::BlockBvh8>> cache;
@@ -345,12 +354,17 @@ void BM_TraceCpuBlocks(benchmark::State& state, const std::string& scene, const 
     const unsigned threads = static_cast<unsigned>(state.range(0));
     const double c0 = process_cpu_ms();
     for (auto _ : state) {
-        rkbench::trace_parallel(rays.size(), threads, [&](std::size_t b, std::size_t e) {
-            if (any)
-                for (std::size_t i = b; i < e; ++i) occ[i] = raykit::intersect_any(*blocks, rays[i]);
-            else
-                for (std::size_t i = b; i < e; ++i) hits[i] = raykit::intersect_closest(*blocks, rays[i]);
-        });
+        if (batch) {
+            if (any) raykit::intersect_any(*blocks, rays, occ, threads);
+            else raykit::intersect_closest(*blocks, rays, hits, threads);
+        } else {
+            rkbench::trace_parallel(rays.size(), threads, [&](std::size_t b, std::size_t e) {
+                if (any)
+                    for (std::size_t i = b; i < e; ++i) occ[i] = raykit::intersect_any(*blocks, rays[i]);
+                else
+                    for (std::size_t i = b; i < e; ++i) hits[i] = raykit::intersect_closest(*blocks, rays[i]);
+            });
+        }
         benchmark::DoNotOptimize(hits.data());
         benchmark::DoNotOptimize(occ.data());
     }
@@ -364,16 +378,20 @@ const bool registered = [] {
         for (const std::string set : {"primary", "random"})
             for (const bool any : {false, true}) {
                 const std::string base = "cl_trace/" + scene + "/" + set + "/" + (any ? "any" : "closest");
-                benchmark::RegisterBenchmark((base + "/device").c_str(), BM_TraceDevice, scene, set, any)
-                    ->UseRealTime()
-                    ->MinTime(0.5)
-                    ->Unit(benchmark::kMillisecond);
-                benchmark::RegisterBenchmark((base + "/cpu_blocks8").c_str(), BM_TraceCpuBlocks, scene, set, any)
-                    ->ArgName("threads")
-                    ->Arg(2)
-                    ->UseRealTime()
-                    ->MinTime(0.5)
-                    ->Unit(benchmark::kMillisecond);
+                for (const bool packets : {true, false})
+                    benchmark::RegisterBenchmark((base + (packets ? "/device" : "/device_single")).c_str(),
+                                                 BM_TraceDevice, scene, set, any, packets)
+                        ->UseRealTime()
+                        ->MinTime(0.5)
+                        ->Unit(benchmark::kMillisecond);
+                for (const bool batch : {false, true})
+                    benchmark::RegisterBenchmark((base + (batch ? "/cpu_batch8" : "/cpu_blocks8")).c_str(),
+                                                 BM_TraceCpuBlocks, scene, set, any, batch)
+                        ->ArgName("threads")
+                        ->Arg(2)
+                        ->UseRealTime()
+                        ->MinTime(0.5)
+                        ->Unit(benchmark::kMillisecond);
                 benchmark::RegisterBenchmark((base + "/cpu").c_str(), BM_TraceCpu, scene, set, any)
                     ->ArgName("threads")
                     ->Arg(2)

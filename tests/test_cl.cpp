@@ -7,6 +7,7 @@
 // binary stays fast, also under ASan/UBSan.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -553,6 +554,63 @@ TEST(SceneCpu, DynamicObjectsMoveFromTheirRestCopyAndRefit) {
     EXPECT_THROW(s.set_transform(0, glm::scale(mat4(1.0f), vec3(0.0f))), std::invalid_argument);
 }
 
+namespace {
+
+/// batch_test_rays plus its random rays again, sorted by octant: packets of incoherent rays
+/// that share an octant, so the packet walk (not its ray-by-ray fallback) takes them.
+std::vector<Ray> packet_test_rays(const Mesh& m, std::size_t n_random, std::uint64_t seed) {
+    std::vector<Ray> rays = raykit::test::batch_test_rays(m, n_random, seed);
+    std::vector<Ray> sorted = random_rays(m, n_random, seed + 100);
+    const auto octant = [](const Ray& r) {
+        return int(std::signbit(r.dir.x)) | int(std::signbit(r.dir.y)) << 1 | int(std::signbit(r.dir.z)) << 2;
+    };
+    std::stable_sort(sorted.begin(), sorted.end(), [&](const Ray& a, const Ray& b) { return octant(a) < octant(b); });
+    rays.insert(rays.end(), sorted.begin(), sorted.end());
+    return rays;
+}
+
+/// Words (t, u, v, prim, inst of every hit; every any-hit flag) where two answer sets differ.
+std::size_t differing_words(const std::vector<Hit>& a, const std::vector<Hit>& b, const std::vector<std::uint32_t>& oa,
+                            const std::vector<std::uint32_t>& ob) {
+    std::size_t d = a.size() != b.size() || oa.size() != ob.size() ? 1 : 0;
+    for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i)
+        d += !same_bits(a[i].t, b[i].t) + !same_bits(a[i].u, b[i].u) + !same_bits(a[i].v, b[i].v) +
+             (a[i].prim != b[i].prim) + (a[i].inst != b[i].inst);
+    for (std::size_t i = 0; i < std::min(oa.size(), ob.size()); ++i) d += oa[i] != ob[i];
+    return d;
+}
+
+}  // namespace
+
+// The packet walk (kernels/raykit/kernels/trace_packet.hpp) against the single-ray walk on the
+// same device: every word of every answer equal, on camera tiles, mixed-octant packets (the
+// fallback), same-octant incoherent packets, axis-parallel and -0 directions, narrowed
+// intervals, vertex-aimed rays; leaves of 1 and 8 triangles.
+TEST(ClTrace, PacketWalkEqualsSingleRaysBitForBit) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    const Mesh m = make_bumpy_torus(20000);
+    const std::vector<Ray> rays = packet_test_rays(m, 3001, 31);
+    for (unsigned leaf : {1u, 8u}) {
+        const Bvh bvh = build(m, leaf);
+        rcl::MeshTracer tracer(dev, m, bvh);
+        tracer.set_packet_walk(false);
+        const std::vector<Hit> single = tracer.closest(rays);
+        const std::vector<std::uint32_t> single_any = tracer.any(rays);
+        tracer.set_packet_walk(true);
+        const std::vector<Hit> packet = tracer.closest(rays);
+        const std::vector<std::uint32_t> packet_any = tracer.any(rays);
+        std::size_t hits = 0, occluded = 0;
+        for (const Hit& h : packet) hits += h.valid();
+        for (std::uint32_t o : packet_any) occluded += o;
+        const std::size_t d = differing_words(single, packet, single_any, packet_any);
+        std::printf("[ info ] leaf %u: %zu rays, %zu hits, %zu occluded; packet vs single: %zu words differ\n", leaf,
+                    rays.size(), hits, occluded, d);
+        EXPECT_EQ(d, 0u) << "leaf " << leaf;
+        EXPECT_GT(hits, rays.size() / 4);
+        EXPECT_EQ(compare_mesh(tracer, m, bvh, rays).prim, 0u);
+    }
+}
+
 // ---------------------------------------------------------------- 5-7. scenes on the device
 
 namespace {
@@ -608,6 +666,49 @@ TEST(ClScene, StaticSceneLaunchesNoVertexOrRefitKernel) {
     // no vertex stage and no refit kernels in the program at all
     EXPECT_THROW((void)ds.program().kernel("rk_vertex_stage_wave"), rcl::Error);
     EXPECT_THROW((void)ds.program().kernel("rk_refit_one_pass"), rcl::Error);
+}
+
+// The packet walk through a scene: a one-leaf top level (three instances, rotations past pi, a
+// non-uniform scale: packets walk each instance in turn, rays mapped lane by lane) and a deeper
+// one (make_test_scene's seven instances: ray by ray); every word equal to the single-ray walk.
+TEST(ClScene, PacketWalkEqualsSingleRaysBitForBit) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    Scene one_leaf;
+    const std::uint32_t torus = one_leaf.add_object(make_bumpy_torus(6000));
+    const std::uint32_t ball = one_leaf.add_object(make_icosphere(3));
+    one_leaf.add_instance(torus);
+    one_leaf.add_instance(ball, glm::scale(transform_of(3.5f, {1, 2, 0}, 1.0f, {1.5f, 0.2f, 0.0f}), vec3(0.6f, 0.3f, 0.9f)));
+    one_leaf.add_instance(torus, transform_of(-4.0f, {0, 1, 1}, 0.4f, {-1.0f, 1.0f, 0.5f}));
+    one_leaf.update_top_level();
+    ASSERT_EQ(one_leaf.top_level().nodes.size(), 1u) << "the test wants a one-leaf top level";
+    const Scene deep = make_test_scene(true);
+    ASSERT_GT(deep.top_level().nodes.size(), 1u);
+    for (const Scene* s : std::initializer_list<const Scene*>{&one_leaf, &deep}) {
+        TestDeviceScene ds(dev, *s);
+        ds.update();
+        const std::vector<Ray> rays = packet_test_rays(s->world_mesh().first, 2001, 41);
+        ds.set_packet_walk(false);
+        const std::vector<Hit> single = ds.closest(rays);
+        const std::vector<std::uint32_t> single_any = ds.any(rays);
+        ds.set_packet_walk(true);
+        const std::vector<Hit> packet = ds.closest(rays);
+        const std::vector<std::uint32_t> packet_any = ds.any(rays);
+        std::size_t hits = 0, insts = 0;
+        std::vector<bool> seen(s->instances().size());
+        for (const Hit& h : packet)
+            if (h.valid()) {
+                ++hits;
+                if (!seen[h.inst]) ++insts;
+                seen[h.inst] = true;
+            }
+        const std::size_t d = differing_words(single, packet, single_any, packet_any);
+        const char* what = s == &one_leaf ? "one-leaf top level" : "deeper top level";
+        std::printf("[ info ] %s: %zu rays, %zu hits on %zu instances; packet vs single: %zu words differ\n", what,
+                    rays.size(), hits, insts, d);
+        EXPECT_EQ(d, 0u) << what;
+        EXPECT_EQ(insts, s->instances().size()) << what;
+        EXPECT_EQ(compare_scene(ds, *s, rays).prim, 0u) << what;
+    }
 }
 
 TEST(ClScene, ExactHookGivesBitIdenticalVerticesTreesAndHits) {

@@ -449,6 +449,35 @@ void broken(rk_ctx* ctx, const rk_path_ray* path, const rk_hit* hit, const rk_su
 
 }  // namespace
 
+/// The renderer's packet walk (kernels/raykit/kernels/trace_packet.hpp) against its single-ray
+/// walk: normals and depth give the same image bit for bit, whitted with shadows (max depth 0)
+/// the same within 1e-6 (with several lights a pixel's shadow colours add by atomics, in any
+/// order), all three the same ray counts. (tests/test_cl.cpp compares the walks' hits word by
+/// word.)
+void expect_packets_change_nothing(rcl::DeviceRenderer& r, const Camera& cam, const std::string& what) {
+    const bool was = r.packet_walk();
+    for (ShaderKind k : {ShaderKind::whitted, ShaderKind::normals, ShaderKind::depth}) {
+        ShadeSettings s;
+        s.shader = k;
+        s.max_depth = 0;
+        rcl::DeviceRenderStats a, b;
+        r.set_packet_walk(false);
+        const Image single = r.render(cam, s, &a);
+        r.set_packet_walk(true);
+        const Image packet = r.render(cam, s, &b);
+        ASSERT_EQ(single.pixels.size(), packet.pixels.size());
+        const float tolerance = k == ShaderKind::whitted ? 1e-6f : 0.0f;
+        std::size_t differ = 0;
+        for (std::size_t i = 0; i < single.pixels.size(); ++i)
+            for (int c = 0; c < 4; ++c) differ += !(std::abs(single.pixels[i][c] - packet.pixels[i][c]) <= tolerance);
+        EXPECT_EQ(differ, 0u) << what << " " << shader_name(k) << ": pixels differ between packet and single-ray walks";
+        EXPECT_EQ(a.shadow, b.shadow) << what;
+        EXPECT_EQ(a.primary, b.primary) << what;
+        EXPECT_GE(distinct_colours(packet), 2u) << what;  // not one flat colour
+    }
+    r.set_packet_walk(was);
+}
+
 TEST(DeviceRender, BuiltInShadersMatchTheCpuRenderer) {
     RAYKIT_REQUIRE_DEVICE(dev);
     TestScene ts;
@@ -478,6 +507,7 @@ TEST(DeviceRender, BuiltInShadersMatchTheCpuRenderer) {
             }
         }
     }
+    expect_packets_change_nothing(r, ts.cam, "test scene");
     // without shadow rays and with no lights
     ShadeSettings s;
     s.shadows = false;
@@ -735,6 +765,7 @@ TEST(DeviceRender, AlphaCutoutsMatchTheCpuRenderer) {
     cam.width = 80;
     cam.height = 60;
     rcl::DeviceRenderer r(dev, rs.view());
+    expect_packets_change_nothing(r, cam, "alpha cut-outs");
     for (TextureFilter f : {TextureFilter::bilinear, TextureFilter::nearest}) {
         ShadeSettings s;
         s.filter = f;
@@ -809,6 +840,7 @@ TEST(DeviceRender, InstancedMultiObjectSceneMatchesTheCpuRenderer) {
     ds.update();
     rcl::DeviceRenderer r(ds, sc.rs.materials, sc.rs.lights);
     expect_every_shader_matches(r, sc.rs, sc.cam, "instanced (DeviceScene)");
+    expect_packets_change_nothing(r, sc.cam, "instanced");
     // the comparison sees the instances: moving one changes the image
     ShadeSettings s;
     s.shader = ShaderKind::normals;

@@ -343,19 +343,27 @@ public:
 
     // ------------------------------------------------------------ tracing
 
+    /// Whether closest() and any() walk rays as packets (packet_walk_default: on CPU devices);
+    /// the answers are the same either way.
+    bool packet_walk() const noexcept { return packets_; }
+    /// Turns the packet walk on or off (the program is rebuilt with it when first needed).
+    void set_packet_walk(bool on) noexcept { packets_ = on; }
+
     void closest(const Buffer<Ray>& rays, Buffer<Hit>& hits, std::size_t n) {
         prepare_trace(rays, n);
         hits.reserve(*dev_, n);
-        set_args(k_closest_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays,
-                 hits, static_cast<std::uint32_t>(n));
-        launches_.trace += launch(dev_->queue(), k_closest_, n, kTraceGroupSize);
+        ::cl::Kernel& k = packets_ ? k_closest_packet_ : k_closest_;
+        set_args(k, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays, hits,
+                 static_cast<std::uint32_t>(n));
+        launches_.trace += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
     }
     void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
         prepare_trace(rays, n);
         occluded.reserve(*dev_, n);
-        set_args(k_any_, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays,
+        ::cl::Kernel& k = packets_ ? k_any_packet_ : k_any_;
+        set_args(k, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays,
                  occluded, static_cast<std::uint32_t>(n));
-        launches_.trace += launch(dev_->queue(), k_any_, n, kTraceGroupSize);
+        launches_.trace += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
     }
     std::vector<Hit> closest(std::span<const Ray> rays) {
         Buffer<Ray> r(*dev_, rays, CL_MEM_READ_ONLY);
@@ -464,10 +472,10 @@ private:
     void ensure_program() {
         static_assert(kHooks <= 64, "at most 64 hooks");
         const std::uint64_t used = used_hooks();
-        if (have_program_ && used == used_) return;
+        if (have_program_ && used == used_ && (!packets_ || built_packets_)) return;
         std::vector<SourcePart> parts = base_parts();
         parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
-        parts.push_back({"raykit/kernels/trace.hpp", kernels::kTrace});
+        for (SourcePart& p : trace_parts(packets_)) parts.push_back(std::move(p));
         if (!dynamic_.empty()) parts.push_back(refit_part());
         for_each_hook([&]<std::size_t I>() {
             if (used & (1ull << I)) {
@@ -478,6 +486,11 @@ private:
         program_ = build_program(*dev_, assemble(parts), raykit_build_options(*dev_));
         k_closest_ = program_.kernel("rk_scene_closest");
         k_any_ = program_.kernel("rk_scene_any");
+        if (packets_) {
+            k_closest_packet_ = program_.kernel("rk_scene_closest_packet");
+            k_any_packet_ = program_.kernel("rk_scene_any_packet");
+        }
+        built_packets_ = packets_;
         k_camera_ = program_.kernel("rk_camera_rays");
         if (!dynamic_.empty()) {
             refit_kernels_ = RefitKernels(program_);
@@ -604,7 +617,8 @@ private:
     std::uint64_t used_ = 0;
 
     Program program_;
-    ::cl::Kernel k_closest_, k_any_, k_camera_, k_roots_;
+    ::cl::Kernel k_closest_, k_any_, k_camera_, k_roots_, k_closest_packet_, k_any_packet_;
+    bool packets_ = packet_walk_default(*dev_), built_packets_ = false;  ///< see packet_walk()
     RefitKernels refit_kernels_;
     RefitPlan refit_plan_;
 

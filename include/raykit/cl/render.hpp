@@ -281,19 +281,23 @@ inline void check_ray_hook_name(const std::string& name) {
 }  // namespace detail
 
 /// Program of hook H for the renderer: base parts, camera, the shading data (with the alpha
-/// cut-out leaf filter when `cut_outs`), the walk, the shade API, the hook, the check of its
-/// params size, its shade kernel rk_dr_shade_NAME (cached per process).
+/// cut-out leaf filter when `cut_outs`), the walk (and the packet walk when `packets`: the
+/// closest-hit and shadow kernels then take kPacketRays rays per work-item), the shade API, the
+/// hook, the check of its params size, its shade kernel rk_dr_shade_NAME (cached per process).
+/// A hook that counts traversal steps is never given packets.
 template <RayHook H>
-Program ray_hook_program(Device& dev, bool cut_outs = false) {
+Program ray_hook_program(Device& dev, bool cut_outs = false, bool packets = false) {
     const std::string name = H::name;
     detail::check_ray_hook_name(name);
     std::vector<SourcePart> parts = base_parts();
-    if constexpr (hook_counts_steps<H>())
+    if constexpr (hook_counts_steps<H>()) {
         parts.push_back({"<hook " + name + " options>", "#define RK_DR_STEPS 1\n"});
+        packets = false;
+    }
     if (cut_outs) parts.push_back({"<alpha cut-outs>", "#define RK_LEAF_FILTER 1\n"});
     parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
     parts.push_back({"raykit/kernels/shade.hpp (data)", kernels::kShadeData});
-    parts.push_back({"raykit/kernels/trace.hpp", kernels::kTrace});
+    for (SourcePart& p : trace_parts(packets)) parts.push_back(std::move(p));
     parts.push_back({"raykit/kernels/shade.hpp", kernels::kShade});
     parts.push_back({"<hook " + name + ">", H::source});
     const std::string size = std::to_string(sizeof(typename H::Params));
@@ -343,6 +347,13 @@ public:
         bounds_ = b;
         fixed_bounds_ = true;
     }
+
+    /// Whether closest-hit and shadow rays walk as packets of kPacketRays (kernels/raykit/kernels/
+    /// trace_packet.hpp; never for a hook that counts traversal steps). Default:
+    /// packet_walk_default (CPU devices). The images are the same either way.
+    bool packet_walk() const noexcept { return packets_; }
+    /// Turns the packet walk on or off (for a comparison, or a device where it measures faster).
+    void set_packet_walk(bool on) noexcept { packets_ = on; }
 
     /// Replaces the lights.
     void set_lights(std::span<const Light> lights) {
@@ -438,7 +449,7 @@ public:
                          sc.nodes(), sc.blocks(), sc.triangles(), queue_, hits_, steps_,
                          static_cast<std::uint32_t>(n), sc.vertices(), material_ids_, shade_objects_, materials_,
                          textures_, texels_, rec);
-                launch(dev.queue(), k.closest, n, kTraceGroupSize, &events.emplace_back(Stage::trace, slot).event);
+                launch(dev.queue(), k.closest, k.trace_items(n), kTraceGroupSize, &events.emplace_back(Stage::trace, slot).event);
                 const std::uint32_t rays_here = depth < shade.max_depth ? max_rays : 0u;
                 // one ray per pixel in this bounce (camera rays, or paths that never branch):
                 // the shade kernel, and the shadow kernel when each ray has at most one shadow
@@ -466,7 +477,7 @@ public:
                              static_cast<std::uint32_t>(shadow_n), image_, sc.vertices(), material_ids_,
                              shade_objects_, materials_, textures_, texels_, rec,
                              one_per_pixel != 0 && max_shadows <= 1 ? 1u : 0u);
-                    launch(dev.queue(), k.shadow, shadow_n, kTraceGroupSize,
+                    launch(dev.queue(), k.shadow, k.trace_items(shadow_n), kTraceGroupSize,
                            &events.emplace_back(Stage::shadow, slot).event);
                 }
                 st.bounce_rays[slot] += n + shadow_n;
@@ -546,6 +557,9 @@ private:
     struct Kernels {
         Program program;
         ::cl::Kernel camera, closest, shadow, shade;
+        bool packets = false;  ///< closest and shadow take kPacketRays rays per work-item
+        /// Work-items of a closest-hit or shadow launch over n rays.
+        std::size_t trace_items(std::size_t n) const noexcept { return cl::trace_items(n, packets); }
     };
     enum class Stage { camera, trace, shade, shadow };
     struct Timed {
@@ -571,13 +585,16 @@ private:
 
     template <RayHook H>
     Kernels& kernels_for() {
-        const std::string key = std::string(alpha_testing_ ? "cut-outs\n" : "") + H::name + '\n' + H::source;
+        const bool packets = packets_ && !hook_counts_steps<H>();
+        const std::string key = std::string(alpha_testing_ ? "cut-outs\n" : "") + (packets ? "packets\n" : "") +
+                                H::name + '\n' + H::source;
         if (auto it = kernels_.find(key); it != kernels_.end()) return it->second;
         Kernels k;
-        k.program = ray_hook_program<H>(*dev_, alpha_testing_);
+        k.packets = packets;
+        k.program = ray_hook_program<H>(*dev_, alpha_testing_, packets);
         k.camera = k.program.kernel("rk_dr_camera");
-        k.closest = k.program.kernel("rk_dr_closest");
-        k.shadow = k.program.kernel("rk_dr_shadow");
+        k.closest = k.program.kernel(packets ? "rk_dr_closest_packet" : "rk_dr_closest");
+        k.shadow = k.program.kernel(packets ? "rk_dr_shadow_packet" : "rk_dr_shadow");
         k.shade = k.program.kernel(std::string("rk_dr_shade_") + H::name);
         return kernels_.emplace(key, std::move(k)).first->second;
     }
@@ -707,6 +724,7 @@ private:
     Buffer<Hit> hits_;
     std::uint32_t object_count_ = 0, material_count_ = 0, light_count_ = 0;
     bool alpha_testing_ = false;
+    bool packets_ = packet_walk_default(*dev_);  ///< see packet_walk()
     std::map<std::string, Kernels> kernels_;
 };
 

@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <span>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "raykit/cl/buffer.hpp"
@@ -34,6 +35,7 @@
 #include "raykit/cl/program.hpp"
 #include "raykit/kernels/camera.hpp"
 #include "raykit/kernels/trace.hpp"
+#include "raykit/kernels/trace_packet.hpp"
 #include "raykit/scene/camera.hpp"
 #include "raykit/scene/mesh.hpp"
 
@@ -41,14 +43,37 @@ namespace raykit::cl {
 
 /// Work-items per work-group of raykit's trace launches.
 inline constexpr std::size_t kTraceGroupSize = 64;
+/// Rays per work-item of the packet walk (kernels/raykit/kernels/trace_packet.hpp).
+inline constexpr std::size_t kPacketRays = 16;
 
-/// Config + layout + common math + camera + trace kernels for `dev` (cached).
-/// `extra_options` are appended to the build options (e.g. "-DRK_EDGE_DOUBLE=0"
-/// forces the float edge functions of kernels/raykit/kernels/common.hpp).
-inline Program trace_program(Device& dev, const std::string& extra_options = {}) {
+/// Whether raykit walks rays as packets on `dev` unless told otherwise: on CPU devices (PoCL),
+/// where a work-item's walk is scalar code and 16 coherent rays sharing each node's fetch and
+/// box test trace faster (kernels/raykit/kernels/trace_packet.hpp); not on GPUs.
+inline bool packet_walk_default(const Device& dev) noexcept { return dev.info().is_cpu(); }
+
+/// The walk's program parts: trace.hpp, and with `packets` the packet walk and its kernels (the
+/// *_packet kernels, kPacketRays rays per work-item), preceded by the RK_PACKET define that
+/// later parts (the renderer's) test.
+inline std::vector<SourcePart> trace_parts(bool packets) {
+    std::vector<SourcePart> parts;
+    if (packets) parts.push_back({"<packets>", "#define RK_PACKET " + std::to_string(kPacketRays) + "\n"});
+    parts.push_back({"raykit/kernels/trace.hpp", kernels::kTrace});
+    if (packets) parts.push_back({"raykit/kernels/trace_packet.hpp", kernels::kTracePacket});
+    return parts;
+}
+
+/// Work-items of a trace launch over n rays: n, or one per kPacketRays rays with `packets`.
+inline std::size_t trace_items(std::size_t n, bool packets) noexcept {
+    return packets ? (n + kPacketRays - 1) / kPacketRays : n;
+}
+
+/// Config + layout + common math + camera + trace kernels for `dev` (cached), with the packet
+/// kernels when `packets`. `extra_options` are appended to the build options (e.g.
+/// "-DRK_EDGE_DOUBLE=0" forces the float edge functions of kernels/raykit/kernels/common.hpp).
+inline Program trace_program(Device& dev, const std::string& extra_options = {}, bool packets = false) {
     std::vector<SourcePart> parts = base_parts();
     parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
-    parts.push_back({"raykit/kernels/trace.hpp", kernels::kTrace});
+    for (SourcePart& p : trace_parts(packets)) parts.push_back(std::move(p));
     std::string opts = raykit_build_options(dev);
     if (!extra_options.empty()) opts += (opts.empty() ? "" : " ") + extra_options;
     return build_program(dev, assemble(parts), opts);
@@ -72,11 +97,18 @@ public:
     MeshTracer(Device& dev, const MeshView& mesh, const Bvh& bvh, const std::string& extra_options = {}) : dev_(&dev) {
         if (mesh.positions.size() >= 0x55555555u || mesh.size() >= 0x55555555u)
             throw std::length_error("raykit::cl::MeshTracer: mesh too large for 32-bit indices");
-        program_ = trace_program(dev, extra_options);
-        k_closest_ = program_.kernel("rk_mesh_closest");
-        k_any_ = program_.kernel("rk_mesh_any");
-        k_camera_ = program_.kernel("rk_camera_rays");
+        extra_options_ = extra_options;
+        build_kernels();
         update_tree(mesh, bvh);
+    }
+
+    /// Whether rays walk as packets (packet_walk_default: on CPU devices); the answers are the
+    /// same either way.
+    bool packet_walk() const noexcept { return packets_; }
+    /// Turns the packet walk on or off (builds the program with it when first needed).
+    void set_packet_walk(bool on) {
+        packets_ = on;
+        if (on && !built_packets_) build_kernels();
     }
 
     /// Replaces the tree and its blocks (e.g. after the vertices moved and `bvh` was refitted
@@ -95,17 +127,18 @@ public:
     void closest(const Buffer<Ray>& rays, Buffer<Hit>& hits, std::size_t n) {
         check_count(rays, n);
         hits.reserve(*dev_, n);
-        set_args(k_closest_, nodes_, blocks_, node_count_, rays, hits,
+        set_args(packets_ ? k_closest_packet_ : k_closest_, nodes_, blocks_, node_count_, rays, hits,
                  static_cast<std::uint32_t>(n));
-        launches_ += launch(dev_->queue(), k_closest_, n, kTraceGroupSize);
+        launches_ += launch(dev_->queue(), packets_ ? k_closest_packet_ : k_closest_, trace_items(n, packets_),
+                            kTraceGroupSize);
     }
     /// occluded[i] = 1 when rays[i] hits anything in [tmin, tmax], else 0.
     void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
         check_count(rays, n);
         occluded.reserve(*dev_, n);
-        set_args(k_any_, nodes_, blocks_, node_count_, rays, occluded,
+        set_args(packets_ ? k_any_packet_ : k_any_, nodes_, blocks_, node_count_, rays, occluded,
                  static_cast<std::uint32_t>(n));
-        launches_ += launch(dev_->queue(), k_any_, n, kTraceGroupSize);
+        launches_ += launch(dev_->queue(), packets_ ? k_any_packet_ : k_any_, trace_items(n, packets_), kTraceGroupSize);
     }
 
     std::vector<Hit> closest(std::span<const Ray> rays) {
@@ -137,14 +170,27 @@ public:
     Buffer<TriangleBlock4>& blocks() noexcept { return blocks_; }
 
 private:
+    void build_kernels() {
+        program_ = trace_program(*dev_, extra_options_, packets_);
+        k_closest_ = program_.kernel("rk_mesh_closest");
+        k_any_ = program_.kernel("rk_mesh_any");
+        k_camera_ = program_.kernel("rk_camera_rays");
+        if (packets_) {
+            k_closest_packet_ = program_.kernel("rk_mesh_closest_packet");
+            k_any_packet_ = program_.kernel("rk_mesh_any_packet");
+        }
+        built_packets_ = packets_;
+    }
     static void check_count(const Buffer<Ray>& rays, std::size_t n) {
         if (n > rays.size()) throw std::out_of_range("raykit::cl::MeshTracer: more rays asked for than the buffer holds");
         if (n > 0xFFFFFFFFu) throw std::length_error("raykit::cl::MeshTracer: more than 2^32 rays in one launch");
     }
 
     Device* dev_;
+    std::string extra_options_;
+    bool packets_ = packet_walk_default(*dev_), built_packets_ = false;
     Program program_;
-    ::cl::Kernel k_closest_, k_any_, k_camera_;
+    ::cl::Kernel k_closest_, k_any_, k_camera_, k_closest_packet_, k_any_packet_;
     Buffer<DeviceNode> nodes_;
     Buffer<TriangleBlock4> blocks_;
     std::uint32_t node_count_ = 0;

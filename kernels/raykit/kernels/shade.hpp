@@ -672,6 +672,43 @@ __kernel void rk_dr_shadow(RK_SCENE_PARAMS, __global const rk_shadow_ray* queue,
     if (rk_walk(&sc, &s.ray, 1, &h, f, 0)) return;
     rk_add_to_pixel(image + (size_t)4 * s.pixel, (float3)(s.color[0], s.color[1], s.color[2]), exclusive);
 }
+
+#ifdef RK_PACKET
+/* rk_dr_closest and rk_dr_shadow with RK_PACKET rays per work-item (kernels/raykit/kernels/
+   trace_packet.hpp: packets where the rays are coherent; the same hits bit for bit). Never in a
+   program with RK_DR_STEPS. */
+__kernel void rk_dr_closest_packet(RK_SCENE_PARAMS, __global const rk_path_ray* queue, __global rk_hit* hits,
+                                   __global uint* steps, const uint n, RK_DR_SHADE_PARAMS) {
+    const uint first = (uint)get_global_id(0) * RK_PACKET;
+    if (first >= n) return;
+    RK_SCENE_MAKE(sc);
+    RK_DR_FILTER(f);
+    const uint m = min((uint)RK_PACKET, n - first);
+    rk_ray r[RK_PACKET];
+    rk_hit h[RK_PACKET];
+    for (uint k = 0; k < m; ++k) r[k] = queue[first + k].ray;
+    rk_walk_batch(&sc, r, m, 0, h, f);
+    for (uint k = 0; k < m; ++k) hits[first + k] = h[k];
+}
+
+__kernel void rk_dr_shadow_packet(RK_SCENE_PARAMS, __global const rk_shadow_ray* queue, const uint n,
+                                  __global float* image, RK_DR_SHADE_PARAMS, const uint exclusive) {
+    const uint first = (uint)get_global_id(0) * RK_PACKET;
+    if (first >= n) return;
+    RK_SCENE_MAKE(sc);
+    RK_DR_FILTER(f);
+    const uint m = min((uint)RK_PACKET, n - first);
+    rk_ray r[RK_PACKET];
+    rk_hit h[RK_PACKET];
+    for (uint k = 0; k < m; ++k) r[k] = queue[first + k].ray;
+    const uint blocked = rk_walk_batch(&sc, r, m, 1, h, f);
+    for (uint k = 0; k < m; ++k) {
+        if ((blocked >> k) & 1u) continue;
+        const rk_shadow_ray s = queue[first + k];
+        rk_add_to_pixel(image + (size_t)4 * s.pixel, (float3)(s.color[0], s.color[1], s.color[2]), exclusive);
+    }
+}
+#endif
 )CLC";
 
 /// The shade kernel of hook @NAME@ (the host replaces @NAME@ by the hook's name).
