@@ -48,6 +48,9 @@
 // are counted there (raykit::TraversalStats of a Scene query: the top level
 // is not counted).
 //
+// Leaves: rk_leaf, the one leaf loop, also run by each lane of the packet walk
+// (kernels/raykit/kernels/trace_packet.hpp, CPU devices).
+//
 // Kernels (one work-item per ray, n = number of rays):
 //   rk_mesh_closest / rk_mesh_any     one mesh: hits[i] (inst 0) / occluded[i] (1 or 0)
 //   rk_scene_closest / rk_scene_any   two levels: top-level tree over instances
@@ -154,6 +157,45 @@ RK_INLINE rk_ray rk_object_ray(__global const rk_instance* in, const rk_ray* r, 
 
 /* The lowest set bit's index (ctz is OpenCL C 2.0). */
 RK_INLINE int rk_lowest_bit(const uint m) { return 31 - (int)clz(m & (0u - m)); }
+
+/* The one leaf loop of the device walks (rk_walk, and each lane of the packet walk): the leaf's
+   `count` blocks from `first` tested with rk_wt4_intersect in [tmin, *tmax], hits taken lane by
+   lane in order as a scalar loop over the leaf's triangles would (t <= *tmax, Hit::closer_than
+   against *best, the leaf filter). Any hit (any != 0): true at the first accepted hit. Closest
+   hit: *best (inst set) and *tmax improved in place, true when they were. */
+RK_INLINE bool rk_leaf(const rk_wt_ray* w, __global const rk_block* restrict blocks, const uint first, const uint count,
+                       const float tmin, float* tmax, const int any, const uint inst, const uint object,
+                       const rk_object* ob, rk_hit* best, const rk_filter* f) {
+    bool found = false;
+    for (uint k = first; k < first + count; ++k) {
+        __global const rk_block* b = blocks + k;
+        float4 t4, u4, v4;
+        uint m = rk_wt4_intersect(w, b, tmin, *tmax, &t4, &u4, &v4);
+        while (m) {  /* lanes in order, as a scalar loop over the leaf's triangles */
+            const int i = rk_lowest_bit(m);
+            m &= m - 1u;
+            const float th = i == 0 ? t4.x : i == 1 ? t4.y : i == 2 ? t4.z : t4.w;
+            if (!(th <= *tmax)) continue;
+            const uint p = b->prim[i];
+            /* Hit::closer_than against the best so far (th <= tmax = best->t when there is one) */
+            if (!any && !(th < best->t || inst < best->inst || (inst == best->inst && p < best->prim))) continue;
+            const float uh = i == 0 ? u4.x : i == 1 ? u4.y : i == 2 ? u4.z : u4.w;
+            const float vh = i == 0 ? v4.x : i == 1 ? v4.y : i == 2 ? v4.z : v4.w;
+#ifdef RK_LEAF_FILTER
+            if (f && !rk_keep(f, object, ob, p, uh, vh)) continue;
+#endif
+            if (any) return true;
+            best->t = th;
+            best->u = uh;
+            best->v = vh;
+            best->prim = p;
+            best->inst = inst;
+            *tmax = th;
+            found = true;
+        }
+    }
+    return found;
+}
 
 /* Closest hit (any == 0: *best improved in place, inst set; true when it was)
    or any hit (any != 0: true when something blocks) of `r` in [r->tmin, r->tmax]. */
@@ -266,33 +308,9 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
                     }
                 } else {
                     if (steps) ++*steps;
-                    for (uint k = cidx; k < cidx + ccnt; ++k) {
-                        __global const rk_block* b = blocks + k;
-                        float4 t4, u4, v4;
-                        uint m = rk_wt4_intersect(&w, b, r->tmin, tmax, &t4, &u4, &v4);
-                        while (m) {  /* lanes in order, as a scalar loop over the leaf's triangles */
-                            const int i = rk_lowest_bit(m);
-                            m &= m - 1u;
-                            const float th = i == 0 ? t4.x : i == 1 ? t4.y : i == 2 ? t4.z : t4.w;
-                            if (!(th <= tmax)) continue;
-                            const uint p = b->prim[i];
-                            /* Hit::closer_than against the best so far (th <= tmax = best->t when there is one) */
-                            if (!any && !(th < best->t || inst < best->inst || (inst == best->inst && p < best->prim)))
-                                continue;
-                            const float uh = i == 0 ? u4.x : i == 1 ? u4.y : i == 2 ? u4.z : u4.w;
-                            const float vh = i == 0 ? v4.x : i == 1 ? v4.y : i == 2 ? v4.z : v4.w;
-#ifdef RK_LEAF_FILTER
-                            if (f && !rk_keep(f, object, &ob, p, uh, vh)) continue;
-#endif
-                            if (any) return true;
-                            best->t = th;
-                            best->u = uh;
-                            best->v = vh;
-                            best->prim = p;
-                            best->inst = inst;
-                            tmax = th;
-                            found = true;
-                        }
+                    if (rk_leaf(&w, blocks, cidx, ccnt, r->tmin, &tmax, any, inst, object, &ob, best, f)) {
+                        if (any) return true;
+                        found = true;
                     }
                 }
                 /* the next entry still in front of tmax */

@@ -5,10 +5,9 @@
 // in one vector operation (float16: PoCL compiles it to AVX-512 or to two or four narrower
 // registers), the node fetched once for all of them. A child is entered by the lanes whose own
 // test enters it; a lane mask travels with every stack entry; a popped entry is re-tested
-// against its lanes' current tmax (its box read again from the parent node). Leaves test each
-// entering lane with the single-ray block test (rk_wt4_intersect) and acceptance rule of rk_walk
-// (kernels/raykit/kernels/trace.hpp), so every lane's answer is its single-ray answer bit for
-// bit: a closest hit is the smallest (t, instance, triangle) over the triangles a ray tests in
+// against its lanes' current tmax (its box read again from the parent node). Leaves run rk_leaf,
+// the single-ray walk's leaf loop (kernels/raykit/kernels/trace.hpp), for each entering lane,
+// so every lane's answer is its single-ray answer bit for bit: a closest hit is the smallest (t, instance, triangle) over the triangles a ray tests in
 // boxes it enters, whatever the visiting order, and a box that holds a closer hit is entered
 // by the same per-lane arithmetic (z, y, x axis order, NaN candidates never deciding, the exit
 // widened once). Children are entered nearest first by the first active lane's entry distance.
@@ -32,7 +31,7 @@
 // rk_dr_closest_packet / rk_dr_shadow_packet are in shade.hpp.
 //
 // Expects RK_PACKET == 16 and the parts before it: kernels/raykit/kernels/common.hpp
-// (rk_wt4_intersect, RK_SLAB_EXIT_SCALE) and trace.hpp (rk_scene, rk_walk, rk_object_ray,
+// (rk_wt_prepare, RK_SLAB_EXIT_SCALE) and trace.hpp (rk_scene, rk_walk, rk_leaf, rk_object_ray,
 // rk_hit, rk_lowest_bit, RK_WSTACK).
 #pragma once
 
@@ -153,42 +152,10 @@ RK_INLINE uint rk_packet_walk(const rk_packet* pk, const rk_wt_ray* w, __global 
                 continue;
             }
         } else {
-            for (uint lm = cmask; lm; lm &= lm - 1u) {
+            for (uint lm = cmask; lm; lm &= lm - 1u) {  /* each entering lane: the single-ray leaf */
                 const int l = rk_lowest_bit(lm);
-                for (uint b = cidx; b < cidx + ccnt; ++b) {
-                    __global const rk_block* blk = blocks + b;
-                    float4 t4, u4, v4;
-                    uint m = rk_wt4_intersect(&w[l], blk, o[l].tmin, tm[l], &t4, &u4, &v4);
-                    bool done = false;
-                    while (m) {  /* rk_walk's leaf: lanes in order, the same acceptance */
-                        const int i = rk_lowest_bit(m);
-                        m &= m - 1u;
-                        const float th = i == 0 ? t4.x : i == 1 ? t4.y : i == 2 ? t4.z : t4.w;
-                        if (!(th <= tm[l])) continue;
-                        const uint pr = blk->prim[i];
-                        rk_hit* bh = best + l;
-                        if (!any && !(th < bh->t || inst < bh->inst || (inst == bh->inst && pr < bh->prim))) continue;
-                        const float uh = i == 0 ? u4.x : i == 1 ? u4.y : i == 2 ? u4.z : u4.w;
-                        const float vh = i == 0 ? v4.x : i == 1 ? v4.y : i == 2 ? v4.z : v4.w;
-#ifdef RK_LEAF_FILTER
-                        if (f && !rk_keep(f, object, ob, pr, uh, vh)) continue;
-#endif
-                        if (any) {
-                            done = true;
-                            break;
-                        }
-                        bh->t = th;
-                        bh->u = uh;
-                        bh->v = vh;
-                        bh->prim = pr;
-                        bh->inst = inst;
-                        tm[l] = th;
-                    }
-                    if (done) {
-                        finished |= 1u << l;
-                        break;
-                    }
-                }
+                if (rk_leaf(w + l, blocks, cidx, ccnt, o[l].tmin, tm + l, any, inst, object, ob, best + l, f) && any)
+                    finished |= 1u << l;
             }
             if (any) {
                 lanes &= ~finished;
