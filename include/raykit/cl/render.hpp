@@ -523,7 +523,8 @@ public:
         return render_hook<H>(cam, centre_sample(set), params, stats);
     }
 
-    /// The camera rays of sample `sample` of every pixel (row-major), as the renderer traces
+    /// The camera rays of sample `sample` of every pixel (row-major; the renderer's queue holds
+    /// them in 4×4-pixel tiles, kernels/raykit/kernels/shade.hpp rk_dr_camera), as it traces
     /// them: for tests and tools (they equal PixelSampler + CameraFrame::ray on the CPU).
     std::vector<Ray> camera_rays(const Camera& cam, const RenderSettings& set, std::uint32_t sample) {
         if (set.spp == 0 || sample >= set.spp)
@@ -541,7 +542,10 @@ public:
         std::vector<PathRay> q(n_pixels);
         queue_.read(dev, std::span<PathRay>(q));
         std::vector<Ray> rays(n_pixels);
-        for (std::size_t i = 0; i < n_pixels; ++i) rays[i] = q[i].ray;
+        for (std::size_t i = 0; i < n_pixels; ++i) {
+            if (q[i].pixel >= n_pixels) throw std::logic_error("raykit::cl::DeviceRenderer::camera_rays: bad pixel");
+            rays[q[i].pixel] = q[i].ray;
+        }
         return rays;
     }
 

@@ -594,14 +594,35 @@ RK_INLINE uint rk_nrooks_column(ulong seed, ulong pixel, uint s, uint spp) {
     return pos;
 }
 
-/* Sample `sample` of every pixel into queue 0 (raykit::PixelSampler: grid_m = m for an m x m
-   grid, 0 for N-rooks; inv_m = 1 / m and inv_spp = 1 / spp computed on the host); pass 0
-   clears the image. */
+/* The pixel of queue slot q: bands of four rows in 4 x 4-pixel tiles (the columns past the last
+   whole tile row by row within the band), the rows past the last whole band row by row — a
+   bijection on [0, w·h), so neighbouring slots hold neighbouring pixels in both directions and
+   the packet walk's 16 consecutive rays are a tile, as the CPU renderer's are. */
+RK_INLINE uint rk_tile_pixel(const uint q, const uint w, const uint h) {
+    const uint band = 4u * w;
+    if (q >= (h / 4u) * band) return q;
+    const uint b = q / band, j = q - b * band, tiles = w / 4u;
+    uint x, y;
+    if (j < 16u * tiles) {
+        x = 4u * (j / 16u) + (j & 3u);
+        y = 4u * b + ((j & 15u) >> 2);
+    } else {
+        const uint r = j - 16u * tiles, rest = w - 4u * tiles;
+        x = 4u * tiles + r % rest;
+        y = 4u * b + r / rest;
+    }
+    return y * w + x;
+}
+
+/* Sample `sample` of every pixel into queue 0, slot q holding pixel rk_tile_pixel(q)
+   (raykit::PixelSampler: grid_m = m for an m x m grid, 0 for N-rooks; inv_m = 1 / m and
+   inv_spp = 1 / spp computed on the host); pass 0 clears the image. */
 __kernel void rk_dr_camera(const rk_camera cam, __global rk_path_ray* queue, __global float4* image,
                            const ulong seed, const uint sample, const uint spp, const uint grid_m,
                            const float inv_m, const float inv_spp, const uint jitter) {
-    const uint i = (uint)get_global_id(0);
-    if (i >= cam.width * cam.height) return;
+    const uint q = (uint)get_global_id(0);
+    if (q >= cam.width * cam.height) return;
+    const uint i = rk_tile_pixel(q, cam.width, cam.height);
     const uint y = i / cam.width;
     const uint x = i - y * cam.width;
     rk_rng rng;
@@ -623,7 +644,7 @@ __kernel void rk_dr_camera(const rk_camera cam, __global rk_path_ray* queue, __g
     r.depth = 0u;
     r.kind = 0u;
     r.rng = rng.state;
-    queue[i] = r;
+    queue[q] = r;
     if (sample == 0u) image[i] = (float4)(0.0f);
 }
 
