@@ -366,7 +366,9 @@ typedef struct {
     __global float* image;            /* 4 floats per pixel: r, g, b, alpha */
     __global rk_path_ray* next;
     __global uint* counters;          /* [0] next-queue rays, [1] shadow rays */
-    __global rk_shadow_ray* shadows;
+    __global rk_shadow_ray* shadows;  /* this ray's slots: shadow_first .. + max_shadows */
+    uint shadow_first;
+    uint max_shadows;
     uint pixel;
     uint depth;
     uint rays_left;
@@ -431,8 +433,8 @@ RK_INLINE rk_ray rk_make_ray(float3 org, float3 dir, float tmin, float tmax) {
 
 RK_INLINE bool rk_emit_shadow(rk_ctx* ctx, float3 org, float3 dir, float tmax, float3 c) {
     if (ctx->shadows_left == 0) return false;
+    const uint slot = ctx->shadow_first + (ctx->max_shadows - ctx->shadows_left);  /* no atomic: see the kernel */
     --ctx->shadows_left;
-    const uint slot = atomic_inc(ctx->counters + 1);
     rk_shadow_ray s;
     s.ray = rk_make_ray(org, dir, 0.0f, tmax);
     s.color[0] = c.x; s.color[1] = c.y; s.color[2] = c.z;
@@ -689,6 +691,7 @@ __kernel void rk_dr_shadow(RK_SCENE_PARAMS, __global const rk_shadow_ray* queue,
     RK_SCENE_MAKE(sc);
     RK_DR_FILTER(f);
     const rk_shadow_ray s = queue[i];
+    if (s.pixel == RK_INVALID) return;  /* an empty slot */
     rk_hit h = rk_miss();
     if (rk_walk(&sc, &s.ray, 1, &h, f, 0)) return;
     rk_add_to_pixel(image + (size_t)4 * s.pixel, (float3)(s.color[0], s.color[1], s.color[2]), exclusive);
@@ -718,14 +721,21 @@ __kernel void rk_dr_shadow_packet(RK_SCENE_PARAMS, __global const rk_shadow_ray*
     if (first >= n) return;
     RK_SCENE_MAKE(sc);
     RK_DR_FILTER(f);
-    const uint m = min((uint)RK_PACKET, n - first);
+    const uint end = min(first + (uint)RK_PACKET, n);
     rk_ray r[RK_PACKET];
     rk_hit h[RK_PACKET];
-    for (uint k = 0; k < m; ++k) r[k] = queue[first + k].ray;
+    uint slot[RK_PACKET];
+    uint m = 0u;
+    for (uint k = first; k < end; ++k)  /* the non-empty slots, in order */
+        if (queue[k].pixel != RK_INVALID) {
+            slot[m] = k;
+            r[m++] = queue[k].ray;
+        }
+    if (m == 0u) return;
     const uint blocked = rk_walk_batch(&sc, r, m, 1, h, f);
     for (uint k = 0; k < m; ++k) {
         if ((blocked >> k) & 1u) continue;
-        const rk_shadow_ray s = queue[first + k];
+        const rk_shadow_ray s = queue[slot[k]];
         rk_add_to_pixel(image + (size_t)4 * s.pixel, (float3)(s.color[0], s.color[1], s.color[2]), exclusive);
     }
 }
@@ -746,42 +756,53 @@ __kernel void rk_dr_shade_@NAME@(__global const rk_path_ray* queue, __global con
                                  __global rk_path_ray* next, __global uint* counters,
                                  __global rk_shadow_ray* shadows, const uint max_rays, const uint max_shadows,
                                  const uint exclusive, const @NAME@_params params) {
+    __local uint group_shadows;
+    if (get_local_id(0) == 0) group_shadows = 0u;
+    barrier(CLK_LOCAL_MEM_FENCE);
     const uint i = (uint)get_global_id(0);
-    if (i >= n) return;
-    const rk_path_ray path = queue[i];
-    const rk_hit hit = hits[i];
-    rk_ctx ctx;
-    ctx.materials = materials;
-    ctx.textures = textures;
-    ctx.texels = texels;
-    ctx.srgb_lut = srgb_lut;
-    ctx.lights = lights;
-    ctx.set = set;
-    ctx.image = image;
-    ctx.next = next;
-    ctx.counters = counters;
-    ctx.shadows = shadows;
-    ctx.pixel = path.pixel;
-    ctx.depth = path.depth;
-    ctx.rays_left = max_rays;
-    ctx.shadows_left = max_shadows;
-    ctx.rng.state = path.rng;
+    if (i < n) {
+        const rk_path_ray path = queue[i];
+        const rk_hit hit = hits[i];
+        rk_ctx ctx;
+        ctx.materials = materials;
+        ctx.textures = textures;
+        ctx.texels = texels;
+        ctx.srgb_lut = srgb_lut;
+        ctx.lights = lights;
+        ctx.set = set;
+        ctx.image = image;
+        ctx.next = next;
+        ctx.counters = counters;
+        ctx.shadows = shadows;
+        ctx.shadow_first = i * max_shadows;
+        ctx.max_shadows = max_shadows;
+        ctx.pixel = path.pixel;
+        ctx.depth = path.depth;
+        ctx.rays_left = max_rays;
+        ctx.shadows_left = max_shadows;
+        ctx.rng.state = path.rng;
 #ifdef RK_DR_STEPS
-    ctx.steps = steps[i];
+        ctx.steps = steps[i];
 #else
-    ctx.steps = 0u;
+        ctx.steps = 0u;
 #endif
-    ctx.alpha_before = path.depth == 0u ? image[(size_t)4 * path.pixel + 3] : 0.0f;
-    ctx.exclusive = exclusive;
-    rk_surface s;
-    s.p = s.ng = s.ns = s.d = s.base = (float3)(0.0f);
-    s.uv = (float2)(0.0f);
-    s.material = 0u;
-    s.entering = 1;
-    if (hit.prim != RK_INVALID)
-        s = rk_surface_at(&ctx, instances, objects, shade_objects, tris, pos, vertices, material_ids, &hit,
-                          normalize(rk_f3(path.ray.dir)));
-    @NAME@(&ctx, &path, &hit, &s, params);
+        ctx.alpha_before = path.depth == 0u ? image[(size_t)4 * path.pixel + 3] : 0.0f;
+        ctx.exclusive = exclusive;
+        rk_surface s;
+        s.p = s.ng = s.ns = s.d = s.base = (float3)(0.0f);
+        s.uv = (float2)(0.0f);
+        s.material = 0u;
+        s.entering = 1;
+        if (hit.prim != RK_INVALID)
+            s = rk_surface_at(&ctx, instances, objects, shade_objects, tris, pos, vertices, material_ids, &hit,
+                              normalize(rk_f3(path.ray.dir)));
+        @NAME@(&ctx, &path, &hit, &s, params);
+        const uint used = max_shadows - ctx.shadows_left;
+        for (uint k = used; k < max_shadows; ++k) shadows[ctx.shadow_first + k].pixel = RK_INVALID;  /* empty slot */
+        if (used) atomic_add(&group_shadows, used);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (get_local_id(0) == 0 && group_shadows) atomic_add(counters + 1, group_shadows);
 }
 )CLC";
 
