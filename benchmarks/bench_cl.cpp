@@ -206,10 +206,11 @@ void BM_Refit(benchmark::State& state, RefitCase which) {
 
 // ---------------------------------------------------------------- program build
 
-std::vector<rcl::SourcePart> scene_program_parts() {
+std::vector<rcl::SourcePart> scene_program_parts(const rcl::Device& dev) {
     std::vector<rcl::SourcePart> parts = rcl::base_parts();
     parts.push_back({"raykit/kernels/camera.hpp", raykit::kernels::kCamera});
-    parts.push_back({"raykit/kernels/trace.hpp", raykit::kernels::kTrace});
+    for (rcl::SourcePart& p : rcl::trace_parts(rcl::packet_walk_default(dev), rcl::TraceKernels::scene))
+        parts.push_back(std::move(p));
     parts.push_back(rcl::refit_part());
     const auto hp = rcl::hook_parts<rcl::WaveHook>();
     parts.insert(parts.end(), hp.begin(), hp.end());
@@ -219,7 +220,7 @@ std::vector<rcl::SourcePart> scene_program_parts() {
 void BM_ProgramFirst(benchmark::State& state) {
     rcl::Device* dev = device_or_skip(state);
     if (!dev) return;
-    const std::string src = rcl::assemble(scene_program_parts());
+    const std::string src = rcl::assemble(scene_program_parts(*dev));
     static int nonce = 0;
     double build_ms = 0.0, launch_ms = 0.0;
     for (auto _ : state) {
@@ -242,7 +243,7 @@ void BM_ProgramFirst(benchmark::State& state) {
 void BM_ProgramCached(benchmark::State& state) {
     rcl::Device* dev = device_or_skip(state);
     if (!dev) return;
-    const std::string src = rcl::assemble(scene_program_parts());
+    const std::string src = rcl::assemble(scene_program_parts(*dev));
     rcl::build_program(*dev, src, rcl::raykit_build_options(*dev));
     for (auto _ : state) benchmark::DoNotOptimize(rcl::build_program(*dev, src, rcl::raykit_build_options(*dev)));
 }

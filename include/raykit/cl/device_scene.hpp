@@ -475,7 +475,7 @@ private:
         if (have_program_ && used == used_ && (!packets_ || built_packets_)) return;
         std::vector<SourcePart> parts = base_parts();
         parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
-        for (SourcePart& p : trace_parts(packets_)) parts.push_back(std::move(p));
+        for (SourcePart& p : trace_parts(packets_, TraceKernels::scene)) parts.push_back(std::move(p));
         if (!dynamic_.empty()) parts.push_back(refit_part());
         for_each_hook([&]<std::size_t I>() {
             if (used & (1ull << I)) {

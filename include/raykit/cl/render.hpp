@@ -301,7 +301,7 @@ Program ray_hook_program(Device& dev, bool cut_outs = false, bool packets = fals
     if (cut_outs) parts.push_back({"<alpha cut-outs>", "#define RK_LEAF_FILTER 1\n"});
     parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
     parts.push_back({"raykit/kernels/shade.hpp (data)", kernels::kShadeData});
-    for (SourcePart& p : trace_parts(packets)) parts.push_back(std::move(p));
+    for (SourcePart& p : trace_parts(packets, TraceKernels::none)) parts.push_back(std::move(p));
     parts.push_back({"raykit/kernels/shade.hpp", kernels::kShade});
     parts.push_back({"<hook " + name + ">", H::source});
     const std::string size = std::to_string(sizeof(typename H::Params));

@@ -51,11 +51,18 @@ inline constexpr std::size_t kPacketRays = 16;
 /// box test trace faster (kernels/raykit/kernels/trace_packet.hpp); not on GPUs.
 inline bool packet_walk_default(const Device& dev) noexcept { return dev.info().is_cpu(); }
 
-/// The walk's program parts: trace.hpp, and with `packets` the packet walk and its kernels (the
-/// *_packet kernels, kPacketRays rays per work-item), preceded by the RK_PACKET define that
-/// later parts (the renderer's) test.
-inline std::vector<SourcePart> trace_parts(bool packets) {
+/// Which of trace.hpp's kernel pairs a program holds: each inlines the whole walk, so a program
+/// compiles only the pair it launches (the renderer's programs have kernels of their own).
+enum class TraceKernels { none, mesh, scene };
+
+/// The walk's program parts: trace.hpp with the kernels `kernels`, and with `packets` the packet
+/// walk and its kernels (the *_packet kernels, kPacketRays rays per work-item), preceded by the
+/// RK_PACKET define that later parts (the renderer's) test.
+inline std::vector<SourcePart> trace_parts(bool packets, TraceKernels kernels) {
     std::vector<SourcePart> parts;
+    if (kernels != TraceKernels::none)
+        parts.push_back({"<trace kernels>", kernels == TraceKernels::mesh ? "#define RK_MESH_KERNELS 1\n"
+                                                                         : "#define RK_SCENE_KERNELS 1\n"});
     if (packets) parts.push_back({"<packets>", "#define RK_PACKET " + std::to_string(kPacketRays) + "\n"});
     parts.push_back({"raykit/kernels/trace.hpp", kernels::kTrace});
     if (packets) parts.push_back({"raykit/kernels/trace_packet.hpp", kernels::kTracePacket});
@@ -67,13 +74,13 @@ inline std::size_t trace_items(std::size_t n, bool packets) noexcept {
     return packets ? (n + kPacketRays - 1) / kPacketRays : n;
 }
 
-/// Config + layout + common math + camera + trace kernels for `dev` (cached), with the packet
-/// kernels when `packets`. `extra_options` are appended to the build options (e.g.
+/// Config + layout + common math + camera + the mesh trace kernels for `dev` (cached), with the
+/// packet kernels when `packets`. `extra_options` are appended to the build options (e.g.
 /// "-DRK_EDGE_DOUBLE=0" forces the float edge functions of kernels/raykit/kernels/common.hpp).
 inline Program trace_program(Device& dev, const std::string& extra_options = {}, bool packets = false) {
     std::vector<SourcePart> parts = base_parts();
     parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
-    for (SourcePart& p : trace_parts(packets)) parts.push_back(std::move(p));
+    for (SourcePart& p : trace_parts(packets, TraceKernels::mesh)) parts.push_back(std::move(p));
     std::string opts = raykit_build_options(dev);
     if (!extra_options.empty()) opts += (opts.empty() ? "" : " ") + extra_options;
     return build_program(dev, assemble(parts), opts);

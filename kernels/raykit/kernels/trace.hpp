@@ -51,7 +51,9 @@
 // Leaves: rk_leaf, the one leaf loop, also run by each lane of the packet walk
 // (kernels/raykit/kernels/trace_packet.hpp, CPU devices).
 //
-// Kernels (one work-item per ray, n = number of rays):
+// Kernels (one work-item per ray, n = number of rays; each pair only in programs that define
+// RK_MESH_KERNELS or RK_SCENE_KERNELS, cl/trace.hpp trace_parts, so a program compiles only the
+// walks it launches):
 //   rk_mesh_closest / rk_mesh_any     one mesh: hits[i] (inst 0) / occluded[i] (1 or 0)
 //   rk_scene_closest / rk_scene_any   two levels: top-level tree over instances
 #pragma once
@@ -368,6 +370,7 @@ RK_INLINE rk_scene rk_mesh_scene(__global const rk_wnode* nodes, __global const 
 #define RK_SCENE_MAKE(sc) const rk_scene sc = {top, top_ids, instances, objects, nodes, blocks, \
     top_count, 0, {0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u}}
 
+#ifdef RK_MESH_KERNELS
 __kernel void rk_mesh_closest(__global const rk_wnode* nodes, __global const rk_block* blocks, const uint node_count,
                               __global const rk_ray* rays, __global rk_hit* hits, const uint n) {
     const uint i = (uint)get_global_id(0);
@@ -389,6 +392,9 @@ __kernel void rk_mesh_any(__global const rk_wnode* nodes, __global const rk_bloc
     occluded[i] = rk_walk(&sc, &r, 1, &h, 0, 0) ? 1u : 0u;
 }
 
+#endif
+
+#ifdef RK_SCENE_KERNELS
 __kernel void rk_scene_closest(RK_SCENE_PARAMS, __global const rk_ray* rays, __global rk_hit* hits, const uint n) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
@@ -407,6 +413,7 @@ __kernel void rk_scene_any(RK_SCENE_PARAMS, __global const rk_ray* rays, __globa
     rk_hit best = rk_miss();
     occluded[i] = rk_walk(&sc, &r, 1, &best, 0, 0) ? 1u : 0u;
 }
+#endif
 )CLC";
 
 }  // namespace raykit::kernels

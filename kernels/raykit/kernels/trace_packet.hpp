@@ -290,6 +290,7 @@ RK_INLINE void rk_packet_any(const rk_scene* sc, __global const rk_ray* rays, __
     for (uint k = 0; k < m; ++k) occluded[first + k] = (blocked >> k) & 1u;
 }
 
+#ifdef RK_MESH_KERNELS
 __kernel void rk_mesh_closest_packet(__global const rk_wnode* nodes, __global const rk_block* blocks,
                                      const uint node_count, __global const rk_ray* rays, __global rk_hit* hits,
                                      const uint n) {
@@ -304,6 +305,9 @@ __kernel void rk_mesh_any_packet(__global const rk_wnode* nodes, __global const 
     rk_packet_any(&sc, rays, occluded, n);
 }
 
+#endif
+
+#ifdef RK_SCENE_KERNELS
 __kernel void rk_scene_closest_packet(RK_SCENE_PARAMS, __global const rk_ray* rays, __global rk_hit* hits,
                                       const uint n) {
     RK_SCENE_MAKE(sc);
@@ -315,6 +319,7 @@ __kernel void rk_scene_any_packet(RK_SCENE_PARAMS, __global const rk_ray* rays, 
     RK_SCENE_MAKE(sc);
     rk_packet_any(&sc, rays, occluded, n);
 }
+#endif
 )CLC";
 
 }  // namespace raykit::kernels
