@@ -268,26 +268,22 @@ RK_INLINE uint rk_walk_batch(const rk_scene* sc, const rk_ray* rays, const uint 
     return blocked;
 }
 
-/* trace.hpp's four kernels with RK_PACKET rays per work-item: the same answers bit for bit. */
-RK_INLINE void rk_packet_closest(const rk_scene* sc, __global const rk_ray* rays, __global rk_hit* hits, const uint n) {
+/* trace.hpp's four kernels with RK_PACKET rays per work-item: the same answers bit for bit.
+   The work-item's rays from rays[]: closest hits into hits[] (any == 0) or occlusion flags into
+   occluded[] (any != 0). */
+RK_INLINE void rk_packet_kernel(const rk_scene* sc, __global const rk_ray* rays, __global rk_hit* hits,
+                                __global uint* occluded, const uint n, const int any) {
     const uint first = (uint)get_global_id(0) * RK_PACKET;
     if (first >= n) return;
     const uint m = min((uint)RK_PACKET, n - first);
     rk_ray r[RK_PACKET];
     rk_hit h[RK_PACKET];
     for (uint k = 0; k < m; ++k) r[k] = rays[first + k];
-    rk_walk_batch(sc, r, m, 0, h, 0);
-    for (uint k = 0; k < m; ++k) hits[first + k] = h[k];
-}
-RK_INLINE void rk_packet_any(const rk_scene* sc, __global const rk_ray* rays, __global uint* occluded, const uint n) {
-    const uint first = (uint)get_global_id(0) * RK_PACKET;
-    if (first >= n) return;
-    const uint m = min((uint)RK_PACKET, n - first);
-    rk_ray r[RK_PACKET];
-    rk_hit h[RK_PACKET];
-    for (uint k = 0; k < m; ++k) r[k] = rays[first + k];
-    const uint blocked = rk_walk_batch(sc, r, m, 1, h, 0);
-    for (uint k = 0; k < m; ++k) occluded[first + k] = (blocked >> k) & 1u;
+    const uint blocked = rk_walk_batch(sc, r, m, any, h, 0);
+    for (uint k = 0; k < m; ++k) {
+        if (any) occluded[first + k] = (blocked >> k) & 1u;
+        else hits[first + k] = h[k];
+    }
 }
 
 #ifdef RK_MESH_KERNELS
@@ -295,29 +291,28 @@ __kernel void rk_mesh_closest_packet(__global const rk_wnode* nodes, __global co
                                      const uint node_count, __global const rk_ray* rays, __global rk_hit* hits,
                                      const uint n) {
     const rk_scene sc = rk_mesh_scene(nodes, blocks, node_count);
-    rk_packet_closest(&sc, rays, hits, n);
+    rk_packet_kernel(&sc, rays, hits, 0, n, 0);
 }
 
 __kernel void rk_mesh_any_packet(__global const rk_wnode* nodes, __global const rk_block* blocks,
                                  const uint node_count, __global const rk_ray* rays, __global uint* occluded,
                                  const uint n) {
     const rk_scene sc = rk_mesh_scene(nodes, blocks, node_count);
-    rk_packet_any(&sc, rays, occluded, n);
+    rk_packet_kernel(&sc, rays, 0, occluded, n, 1);
 }
-
 #endif
 
 #ifdef RK_SCENE_KERNELS
 __kernel void rk_scene_closest_packet(RK_SCENE_PARAMS, __global const rk_ray* rays, __global rk_hit* hits,
                                       const uint n) {
     RK_SCENE_MAKE(sc);
-    rk_packet_closest(&sc, rays, hits, n);
+    rk_packet_kernel(&sc, rays, hits, 0, n, 0);
 }
 
 __kernel void rk_scene_any_packet(RK_SCENE_PARAMS, __global const rk_ray* rays, __global uint* occluded,
                                   const uint n) {
     RK_SCENE_MAKE(sc);
-    rk_packet_any(&sc, rays, occluded, n);
+    rk_packet_kernel(&sc, rays, 0, occluded, n, 1);
 }
 #endif
 )CLC";
