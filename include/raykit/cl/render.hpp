@@ -70,10 +70,11 @@
 // --------------------
 // A frame is spp passes, one per sample index: pass s puts sample s of every pixel into queue 0
 // (W·H camera rays, whatever spp is). Rays live in per-bounce queues on the device; the shade
-// launch of bounce k writes the continuation rays of bounce k + 1 into slots taken by atomic_inc
-// on a counter, and this bounce's shadow rays into fixed slots (ray i's from i · max_shadow_rays,
-// unused ones marked empty; the counter is one atomic add per work-group). A shared counter
-// taken once per shadow ray cost the goblin frame's shade kernel 26 ms instead of 9 on PoCL
+// launch of bounce k writes this bounce's shadow rays into fixed slots (ray i's from
+// i · max_shadow_rays, unused ones marked empty, counted by one atomic add per work-group) and
+// the continuation rays of bounce k + 1 into fixed slots of a staging queue, which the work-group
+// then copies, packed, to a range of the next queue it takes with one atomic add. A shared
+// counter taken once per ray cost the goblin frame's shade kernel 26 ms instead of 9 on PoCL
 // (two cores bouncing its cache line, in processes where the two threads ran apart); fixed
 // slots also keep the shadow queue in camera-tile order for the packet walk. Before each shade launch the host grows the next
 // queue to (rays of bounce k) × max_rays and the shadow queue to (rays of bounce k) ×
@@ -463,12 +464,13 @@ public:
                 if (next_cap >= 0xFFFFFFFFu || shadow_cap >= 0xFFFFFFFFu)
                     throw std::length_error("raykit::cl::DeviceRenderer: ray queue beyond 2^32 rays");
                 next_.reserve(dev, next_cap);
+                stage_.reserve(dev, next_cap);
                 shadow_.reserve(dev, shadow_cap);
                 const std::uint32_t zero[2] = {0u, 0u};
                 counters_.write(dev, std::span<const std::uint32_t>(zero, 2));
                 set_args(k.shade, queue_, hits_, steps_, static_cast<std::uint32_t>(n), sc.instances(), sc.objects(),
                          sc.triangles(), sc.positions(), sc.vertices(), material_ids_, shade_objects_, materials_,
-                         textures_, texels_, srgb_lut_, lights_, rec, image_, next_, counters_, shadow_, rays_here,
+                         textures_, texels_, srgb_lut_, lights_, rec, image_, next_, stage_, counters_, shadow_, rays_here,
                          max_shadows, one_per_pixel, params);
                 launch(dev.queue(), k.shade, n, kTraceGroupSize, &events.emplace_back(Stage::shade, slot).event);
                 std::uint32_t cnt[2] = {0u, 0u};
@@ -516,7 +518,8 @@ public:
             }
             if (e.stage == Stage::trace || e.stage == Stage::shadow) st.bounce_ms[e.slot] += ms;
         }
-        st.queue_bytes = queue_.bytes() + next_.bytes() + shadow_.bytes() + hits_.bytes() + steps_.bytes();
+        st.queue_bytes =
+            queue_.bytes() + next_.bytes() + stage_.bytes() + shadow_.bytes() + hits_.bytes() + steps_.bytes();
         st.resolve_ms = std::chrono::duration<double, std::milli>(t_end - t_resolve).count();
         st.render_ms = std::chrono::duration<double, std::milli>(t_end - t0).count();
         if (stats) *stats = st;
@@ -729,7 +732,7 @@ private:
     Buffer<TextureRecord> textures_;
     Buffer<std::uint8_t> texels_;
     Buffer<LightRecord> lights_;
-    Buffer<PathRay> queue_, next_;
+    Buffer<PathRay> queue_, next_, stage_;  ///< stage_: continuation rays in fixed slots before compaction
     Buffer<ShadowRay> shadow_;
     Buffer<Hit> hits_;
     std::uint32_t object_count_ = 0, material_count_ = 0, light_count_ = 0;

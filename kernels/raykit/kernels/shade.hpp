@@ -364,7 +364,9 @@ typedef struct {
     __global const rk_light* lights;
     rk_render_settings set;
     __global float* image;            /* 4 floats per pixel: r, g, b, alpha */
-    __global rk_path_ray* next;
+    __global rk_path_ray* next;       /* this ray's staging slots: next_first .. + max_rays */
+    uint next_first;
+    uint max_rays;
     __global uint* counters;          /* [0] next-queue rays, [1] shadow rays */
     __global rk_shadow_ray* shadows;  /* this ray's slots: shadow_first .. + max_shadows */
     uint shadow_first;
@@ -445,8 +447,8 @@ RK_INLINE bool rk_emit_shadow(rk_ctx* ctx, float3 org, float3 dir, float tmax, f
 
 RK_INLINE bool rk_emit_ray(rk_ctx* ctx, float3 org, float3 dir, float3 weight, uint kind) {
     if (ctx->depth >= ctx->set.max_depth || ctx->rays_left == 0) return false;
+    const uint slot = ctx->next_first + (ctx->max_rays - ctx->rays_left);  /* staged: see the kernel */
     --ctx->rays_left;
-    const uint slot = atomic_inc(ctx->counters + 0);
     rk_path_ray r;
     r.ray = rk_make_ray(org, dir, 0.0f, INFINITY);
     r.weight[0] = weight.x; r.weight[1] = weight.y; r.weight[2] = weight.z;
@@ -753,13 +755,15 @@ __kernel void rk_dr_shade_@NAME@(__global const rk_path_ray* queue, __global con
                                  __global const rk_texture* textures, __global const uchar4* texels,
                                  __global const float* srgb_lut, __global const rk_light* lights,
                                  const rk_render_settings set, __global float* image,
-                                 __global rk_path_ray* next, __global uint* counters,
+                                 __global rk_path_ray* next, __global rk_path_ray* stage, __global uint* counters,
                                  __global rk_shadow_ray* shadows, const uint max_rays, const uint max_shadows,
                                  const uint exclusive, const @NAME@_params params) {
-    __local uint group_shadows;
-    if (get_local_id(0) == 0) group_shadows = 0u;
+    /* the work-group's shadow rays (a count) and continuation rays (packed into one range of next) */
+    __local uint group_shadows, group_rays, group_base;
+    if (get_local_id(0) == 0) group_shadows = group_rays = 0u;
     barrier(CLK_LOCAL_MEM_FENCE);
     const uint i = (uint)get_global_id(0);
+    uint rays = 0u, offset = 0u;
     if (i < n) {
         const rk_path_ray path = queue[i];
         const rk_hit hit = hits[i];
@@ -771,7 +775,9 @@ __kernel void rk_dr_shade_@NAME@(__global const rk_path_ray* queue, __global con
         ctx.lights = lights;
         ctx.set = set;
         ctx.image = image;
-        ctx.next = next;
+        ctx.next = stage;
+        ctx.next_first = i * max_rays;
+        ctx.max_rays = max_rays;
         ctx.counters = counters;
         ctx.shadows = shadows;
         ctx.shadow_first = i * max_shadows;
@@ -800,9 +806,16 @@ __kernel void rk_dr_shade_@NAME@(__global const rk_path_ray* queue, __global con
         const uint used = max_shadows - ctx.shadows_left;
         for (uint k = used; k < max_shadows; ++k) shadows[ctx.shadow_first + k].pixel = RK_INVALID;  /* empty slot */
         if (used) atomic_add(&group_shadows, used);
+        rays = max_rays - ctx.rays_left;
+        if (rays) offset = atomic_add(&group_rays, rays);
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    if (get_local_id(0) == 0 && group_shadows) atomic_add(counters + 1, group_shadows);
+    if (get_local_id(0) == 0) {
+        if (group_shadows) atomic_add(counters + 1, group_shadows);
+        if (group_rays) group_base = atomic_add(counters + 0, group_rays);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint k = 0; k < rays; ++k) next[group_base + offset + k] = stage[i * max_rays + k];
 }
 )CLC";
 
