@@ -215,7 +215,9 @@ unsigned traverse_packet(const WideBvhT<W>& bvh, const RayPacket<N>& p, unsigned
             int entered[std::size_t(W)];
             int k = 0;
             for (int i = 0; i < W; ++i) {
-                if (n.unused(i)) continue;  // an empty box no ray enters: not worth a test
+                // unused slots hold an empty box no lane enters: testing them is cheaper than
+                // branching on unused(i), whose pattern varies node to node (render_cpu, thesis
+                // camera rays, 1 thread: trace 15.1-15.3 ms with the branch, 12.5-12.7 without)
                 alignas(64) float tn[std::size_t(N)];
                 const unsigned m = detail::packet_enter_child(p, n, i, cur_mask, tn);
                 if (!m) continue;
