@@ -10,18 +10,26 @@
 //
 // A frame is one pass per sample index s = 0 .. spp-1, each a loop over
 // bounces. rk_dr_camera fills queue 0 with sample s of every pixel (one
-// camera ray per pixel, placed as raykit::PixelSampler places it, with the
-// sample's generator state; pass 0 also clears the image). Per bounce:
+// camera ray per pixel in 4 x 4-pixel tiles, placed as raykit::PixelSampler
+// places it, with the sample's generator state; pass 0 also clears the image).
+// Per bounce:
 //   rk_dr_closest        closest hit of every ray of the current queue (and,
 //                        for hooks that ask, its traversal steps: bottom-level
-//                        inner nodes + leaves, as the CPU counts them)
+//                        inner nodes + leaves, as the CPU counts them);
+//                        rk_dr_closest_packet with RK_PACKET (16 rays a
+//                        work-item, kernels/raykit/kernels/trace_packet.hpp)
 //   rk_dr_shade_NAME     per ray: the surface at the hit, then the hook NAME,
 //                        which may add colour to the ray's pixel and emit
 //                        shadow rays (any-hit) and continuation rays (closest
-//                        hit, next bounce); emitted rays get their slot in
-//                        the next queue by atomic_inc on that queue's counter
-//   rk_dr_shadow         any hit of every emitted shadow ray; unblocked ones
-//                        add their colour to their pixel
+//                        hit, next bounce). Ray i's shadow rays go to fixed
+//                        slots i·max_shadows.. (unused ones marked empty), its
+//                        continuation rays to fixed slots of a staging queue
+//                        that the work-group copies, packed, into a range of
+//                        the next queue: one global atomic add per work-group
+//                        for each queue, none per ray
+//   rk_dr_shadow         any hit of every emitted shadow ray (empty slots
+//                        skipped); unblocked ones add their colour to their
+//                        pixel; rk_dr_shadow_packet with RK_PACKET
 // until the next queue is empty. The host sizes each queue before the shade
 // launch as (rays of this bounce) × (the hook's maximum per hit), so queues
 // grow with the rays alive, never with pixels × a fixed maximum.
