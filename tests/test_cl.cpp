@@ -678,7 +678,8 @@ TEST(ClScene, PacketWalkEqualsSingleRaysBitForBit) {
     const std::uint32_t torus = one_leaf.add_object(make_bumpy_torus(6000));
     const std::uint32_t ball = one_leaf.add_object(make_icosphere(3));
     one_leaf.add_instance(torus);
-    one_leaf.add_instance(ball, glm::scale(transform_of(3.5f, {1, 2, 0}, 1.0f, {1.5f, 0.2f, 0.0f}), vec3(0.6f, 0.3f, 0.9f)));
+    one_leaf.add_instance(ball,
+                          glm::scale(transform_of(3.5f, {1, 2, 0}, 1.0f, {1.5f, 0.2f, 0.0f}), vec3(0.6f, 0.3f, 0.9f)));
     one_leaf.add_instance(torus, transform_of(-4.0f, {0, 1, 1}, 0.4f, {-1.0f, 1.0f, 0.5f}));
     one_leaf.update_top_level();
     ASSERT_EQ(one_leaf.top_level().nodes.size(), 1u) << "the test wants a one-leaf top level";

@@ -76,8 +76,9 @@
 // then copies, packed, to a range of the next queue it takes with one atomic add. A shared
 // counter taken once per ray cost the goblin frame's shade kernel 26 ms instead of 9 on PoCL
 // (two cores bouncing its cache line, in processes where the two threads ran apart); fixed
-// slots also keep the shadow queue in camera-tile order for the packet walk. Before each shade launch the host grows the next
-// queue to (rays of bounce k) × max_rays and the shadow queue to (rays of bounce k) ×
+// slots also keep the shadow queue in camera-tile order for the packet walk. Before each shade
+// launch the host grows the next queue (and the staging queue) to (rays of bounce k) × max_rays
+// and the shadow queue to (rays of bounce k) ×
 // max_shadow_rays (buffers only grow, they are kept between frames), so memory follows the rays
 // alive, never pixels × samples × a fixed maximum. A path ends when its hook emits nothing or at
 // ShadeSettings::max_depth (rk_emit_ray refuses beyond it); a pass ends when a queue is empty.
@@ -454,7 +455,8 @@ public:
                          sc.nodes(), sc.blocks(), sc.triangles(), queue_, hits_, steps_,
                          static_cast<std::uint32_t>(n), sc.vertices(), material_ids_, shade_objects_, materials_,
                          textures_, texels_, rec);
-                launch(dev.queue(), k.closest, k.trace_items(n), kTraceGroupSize, &events.emplace_back(Stage::trace, slot).event);
+                launch(dev.queue(), k.closest, k.trace_items(n), kTraceGroupSize,
+                       &events.emplace_back(Stage::trace, slot).event);
                 const std::uint32_t rays_here = depth < shade.max_depth ? max_rays : 0u;
                 // one ray per pixel in this bounce (camera rays, or paths that never branch):
                 // the shade kernel, and the shadow kernel when each ray has at most one shadow
@@ -470,8 +472,8 @@ public:
                 counters_.write(dev, std::span<const std::uint32_t>(zero, 2));
                 set_args(k.shade, queue_, hits_, steps_, static_cast<std::uint32_t>(n), sc.instances(), sc.objects(),
                          sc.triangles(), sc.positions(), sc.vertices(), material_ids_, shade_objects_, materials_,
-                         textures_, texels_, srgb_lut_, lights_, rec, image_, next_, stage_, counters_, shadow_, rays_here,
-                         max_shadows, one_per_pixel, params);
+                         textures_, texels_, srgb_lut_, lights_, rec, image_, next_, stage_, counters_, shadow_,
+                         rays_here, max_shadows, one_per_pixel, params);
                 launch(dev.queue(), k.shade, n, kTraceGroupSize, &events.emplace_back(Stage::shade, slot).event);
                 std::uint32_t cnt[2] = {0u, 0u};
                 counters_.read(dev, std::span<std::uint32_t>(cnt, 2));

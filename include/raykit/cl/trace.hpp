@@ -145,7 +145,8 @@ public:
         occluded.reserve(*dev_, n);
         set_args(packets_ ? k_any_packet_ : k_any_, nodes_, blocks_, node_count_, rays, occluded,
                  static_cast<std::uint32_t>(n));
-        launches_ += launch(dev_->queue(), packets_ ? k_any_packet_ : k_any_, trace_items(n, packets_), kTraceGroupSize);
+        launches_ +=
+            launch(dev_->queue(), packets_ ? k_any_packet_ : k_any_, trace_items(n, packets_), kTraceGroupSize);
     }
 
     std::vector<Hit> closest(std::span<const Ray> rays) {
