@@ -352,7 +352,7 @@ public:
     void closest(const Buffer<Ray>& rays, Buffer<Hit>& hits, std::size_t n) {
         prepare_trace(rays, n);
         hits.reserve(*dev_, n);
-        ::cl::Kernel& k = packets_ ? k_closest_packet_ : k_closest_;
+        ::cl::Kernel& k = trace_kernels_.pick(false, packets_);
         set_args(k, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays, hits,
                  static_cast<std::uint32_t>(n));
         launches_.trace += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
@@ -360,7 +360,7 @@ public:
     void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
         prepare_trace(rays, n);
         occluded.reserve(*dev_, n);
-        ::cl::Kernel& k = packets_ ? k_any_packet_ : k_any_;
+        ::cl::Kernel& k = trace_kernels_.pick(true, packets_);
         set_args(k, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays,
                  occluded, static_cast<std::uint32_t>(n));
         launches_.trace += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
@@ -472,7 +472,7 @@ private:
     void ensure_program() {
         static_assert(kHooks <= 64, "at most 64 hooks");
         const std::uint64_t used = used_hooks();
-        if (have_program_ && used == used_ && (!packets_ || built_packets_)) return;
+        if (have_program_ && used == used_ && (!packets_ || trace_kernels_.packets)) return;
         std::vector<SourcePart> parts = base_parts();
         parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
         for (SourcePart& p : trace_parts(packets_, TraceKernels::scene)) parts.push_back(std::move(p));
@@ -484,13 +484,7 @@ private:
             }
         });
         program_ = build_program(*dev_, assemble(parts), raykit_build_options(*dev_));
-        k_closest_ = program_.kernel("rk_scene_closest");
-        k_any_ = program_.kernel("rk_scene_any");
-        if (packets_) {
-            k_closest_packet_ = program_.kernel("rk_scene_closest_packet");
-            k_any_packet_ = program_.kernel("rk_scene_any_packet");
-        }
-        built_packets_ = packets_;
+        trace_kernels_ = TraceKernelSet(program_, TraceKernels::scene, packets_);
         k_camera_ = program_.kernel("rk_camera_rays");
         if (!dynamic_.empty()) {
             refit_kernels_ = RefitKernels(program_);
@@ -617,8 +611,9 @@ private:
     std::uint64_t used_ = 0;
 
     Program program_;
-    ::cl::Kernel k_closest_, k_any_, k_camera_, k_roots_, k_closest_packet_, k_any_packet_;
-    bool packets_ = packet_walk_default(*dev_), built_packets_ = false;  ///< see packet_walk()
+    TraceKernelSet trace_kernels_;
+    ::cl::Kernel k_camera_, k_roots_;
+    bool packets_ = packet_walk_default(*dev_);  ///< see packet_walk()
     RefitKernels refit_kernels_;
     RefitPlan refit_plan_;
 

@@ -74,6 +74,29 @@ inline std::size_t trace_items(std::size_t n, bool packets) noexcept {
     return packets ? (n + kPacketRays - 1) / kPacketRays : n;
 }
 
+/// A program's closest-hit and any-hit kernels of one pair (trace_parts' `kernels`), with their
+/// packet forms when it was built with them.
+struct TraceKernelSet {
+    ::cl::Kernel closest, any, closest_packet, any_packet;
+    bool packets = false;  ///< the packet forms are there
+
+    TraceKernelSet() = default;
+    TraceKernelSet(const Program& p, TraceKernels pair, bool with_packets) : packets(with_packets) {
+        const std::string base = pair == TraceKernels::mesh ? "rk_mesh_" : "rk_scene_";
+        closest = p.kernel(base + "closest");
+        any = p.kernel(base + "any");
+        if (packets) {
+            closest_packet = p.kernel(base + "closest_packet");
+            any_packet = p.kernel(base + "any_packet");
+        }
+    }
+    /// The kernel of a closest-hit (any_hit false) or any-hit launch, as packets when `packet_walk`.
+    ::cl::Kernel& pick(bool any_hit, bool packet_walk) {
+        if (packet_walk && !packets) throw std::logic_error("raykit::cl: packet kernels were not built");
+        return any_hit ? (packet_walk ? any_packet : any) : (packet_walk ? closest_packet : closest);
+    }
+};
+
 /// Config + layout + common math + camera + the mesh trace kernels for `dev` (cached), with the
 /// packet kernels when `packets`. `extra_options` are appended to the build options (e.g.
 /// "-DRK_EDGE_DOUBLE=0" forces the float edge functions of kernels/raykit/kernels/common.hpp).
@@ -115,7 +138,7 @@ public:
     /// Turns the packet walk on or off (builds the program with it when first needed).
     void set_packet_walk(bool on) {
         packets_ = on;
-        if (on && !built_packets_) build_kernels();
+        if (on && !kernels_.packets) build_kernels();
     }
 
     /// Replaces the tree and its blocks (e.g. after the vertices moved and `bvh` was refitted
@@ -134,19 +157,17 @@ public:
     void closest(const Buffer<Ray>& rays, Buffer<Hit>& hits, std::size_t n) {
         check_count(rays, n);
         hits.reserve(*dev_, n);
-        set_args(packets_ ? k_closest_packet_ : k_closest_, nodes_, blocks_, node_count_, rays, hits,
-                 static_cast<std::uint32_t>(n));
-        launches_ += launch(dev_->queue(), packets_ ? k_closest_packet_ : k_closest_, trace_items(n, packets_),
-                            kTraceGroupSize);
+        ::cl::Kernel& k = kernels_.pick(false, packets_);
+        set_args(k, nodes_, blocks_, node_count_, rays, hits, static_cast<std::uint32_t>(n));
+        launches_ += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
     }
     /// occluded[i] = 1 when rays[i] hits anything in [tmin, tmax], else 0.
     void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
         check_count(rays, n);
         occluded.reserve(*dev_, n);
-        set_args(packets_ ? k_any_packet_ : k_any_, nodes_, blocks_, node_count_, rays, occluded,
-                 static_cast<std::uint32_t>(n));
-        launches_ +=
-            launch(dev_->queue(), packets_ ? k_any_packet_ : k_any_, trace_items(n, packets_), kTraceGroupSize);
+        ::cl::Kernel& k = kernels_.pick(true, packets_);
+        set_args(k, nodes_, blocks_, node_count_, rays, occluded, static_cast<std::uint32_t>(n));
+        launches_ += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
     }
 
     std::vector<Hit> closest(std::span<const Ray> rays) {
@@ -180,14 +201,8 @@ public:
 private:
     void build_kernels() {
         program_ = trace_program(*dev_, extra_options_, packets_);
-        k_closest_ = program_.kernel("rk_mesh_closest");
-        k_any_ = program_.kernel("rk_mesh_any");
+        kernels_ = TraceKernelSet(program_, TraceKernels::mesh, packets_);
         k_camera_ = program_.kernel("rk_camera_rays");
-        if (packets_) {
-            k_closest_packet_ = program_.kernel("rk_mesh_closest_packet");
-            k_any_packet_ = program_.kernel("rk_mesh_any_packet");
-        }
-        built_packets_ = packets_;
     }
     static void check_count(const Buffer<Ray>& rays, std::size_t n) {
         if (n > rays.size()) throw std::out_of_range("raykit::cl::MeshTracer: more rays asked for than the buffer holds");
@@ -196,9 +211,10 @@ private:
 
     Device* dev_;
     std::string extra_options_;
-    bool packets_ = packet_walk_default(*dev_), built_packets_ = false;
+    bool packets_ = packet_walk_default(*dev_);
     Program program_;
-    ::cl::Kernel k_closest_, k_any_, k_camera_, k_closest_packet_, k_any_packet_;
+    TraceKernelSet kernels_;
+    ::cl::Kernel k_camera_;
     Buffer<DeviceNode> nodes_;
     Buffer<TriangleBlock4> blocks_;
     std::uint32_t node_count_ = 0;
