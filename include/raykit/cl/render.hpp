@@ -286,20 +286,26 @@ inline void check_ray_hook_name(const std::string& name) {
 }
 }  // namespace detail
 
+/// Whether hook H's closest-hit and shadow rays walk as packets when `packet_walk` asks for them:
+/// not for a hook that counts traversal steps (the packet walk counts none).
+template <RayHook H>
+constexpr bool hook_packets(bool packet_walk) noexcept {
+    return packet_walk && !hook_counts_steps<H>();
+}
+
 /// Program of hook H for the renderer: base parts, camera, the shading data (with the alpha
 /// cut-out leaf filter when `cut_outs`), the walk (and the packet walk when `packets`: the
 /// closest-hit and shadow kernels then take kPacketRays rays per work-item), the shade API, the
 /// hook, the check of its params size, its shade kernel rk_dr_shade_NAME (cached per process).
-/// A hook that counts traversal steps is never given packets.
+/// `packets` is taken through hook_packets.
 template <RayHook H>
 Program ray_hook_program(Device& dev, bool cut_outs = false, bool packets = false) {
     const std::string name = H::name;
     detail::check_ray_hook_name(name);
     std::vector<SourcePart> parts = base_parts();
-    if constexpr (hook_counts_steps<H>()) {
+    packets = hook_packets<H>(packets);
+    if constexpr (hook_counts_steps<H>())
         parts.push_back({"<hook " + name + " options>", "#define RK_DR_STEPS 1\n"});
-        packets = false;
-    }
     if (cut_outs) parts.push_back({"<alpha cut-outs>", "#define RK_LEAF_FILTER 1\n"});
     parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
     parts.push_back({"raykit/kernels/shade.hpp (data)", kernels::kShadeData});
@@ -600,7 +606,7 @@ private:
 
     template <RayHook H>
     Kernels& kernels_for() {
-        const bool packets = packets_ && !hook_counts_steps<H>();
+        const bool packets = hook_packets<H>(packets_);
         const std::string key = std::string(alpha_testing_ ? "cut-outs\n" : "") + (packets ? "packets\n" : "") +
                                 H::name + '\n' + H::source;
         if (auto it = kernels_.find(key); it != kernels_.end()) return it->second;
