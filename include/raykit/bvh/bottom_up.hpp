@@ -70,14 +70,14 @@ struct MergeInfo {
 
 /// The leaf-merge rule for a primitive (a one-primitive leaf)...
 inline SubtreeCost primitive_cost(const AABB& real_box, const LeafCost& cfg) noexcept {
-    return {1, 1, cfg.intersection_cost * real_box.half_area()};
+    return {1, 1, cfg.intersection_cost * fused_proof_half_area(real_box)};
 }
 /// ... and for an inner node with box `box` over subtrees a and b: a leaf
 /// when it holds at most leaf_limit() primitives and Ci·SA·n ≤ Ct·SA +
 /// cost(a) + cost(b).
 inline SubtreeCost node_cost(const AABB& box, const SubtreeCost& a, const SubtreeCost& b,
                              const LeafCost& cfg) noexcept {
-    const float sa = box.half_area();
+    const float sa = fused_proof_half_area(box);
     const std::uint32_t cnt = a.count + b.count;
     const float split = cfg.split_cost(sa, a.cost + b.cost);
     const float leaf = cfg.leaf_cost(sa, cnt);

@@ -229,7 +229,8 @@ private:
         AABB box(std::size_t i) const noexcept { return {{lx[i], ly[i], lz[i]}, {hx[i], hy[i], hz[i]}}; }
     };
 
-    /// d[j] = half area of a ∪ box j for the k boxes given as six arrays.
+    /// d[j] = half area of a ∪ box j for the k boxes given as six arrays (fused_proof_half_area:
+    /// the device builder computes the same floats).
     static void window_areas(const AABB& a, const float* RAYKIT_RESTRICT plx, const float* RAYKIT_RESTRICT ply,
                              const float* RAYKIT_RESTRICT plz, const float* RAYKIT_RESTRICT phx,
                              const float* RAYKIT_RESTRICT phy, const float* RAYKIT_RESTRICT phz, std::size_t k,
@@ -242,7 +243,7 @@ private:
             ex = ex < detail::kFloatMax ? ex : detail::kFloatMax;
             ey = ey < detail::kFloatMax ? ey : detail::kFloatMax;
             ez = ez < detail::kFloatMax ? ez : detail::kFloatMax;
-            d[j] = ex * ey + ey * ez + ez * ex;
+            d[j] = fused_proof_half_area(ex, ey, ez);
         }
     }
 

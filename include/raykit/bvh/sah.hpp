@@ -26,6 +26,22 @@ inline float leaf_block_weight(std::uint32_t n, unsigned leaf_block) noexcept {
     return float((n + leaf_block - 1) >> std::countr_zero(leaf_block));
 }
 
+/// Half surface area ex·ey + ey·ez + ez·ex of a box with extents e, with each
+/// product exact (float × float fits a double) and the sum rounded to float at
+/// the end, so a compiler's multiply-add fusion cannot change it: the bottom-up
+/// builders' merge and leaf decisions and the wide collapse use it, and so does
+/// the device builder (kernels/raykit/kernels/build.hpp), which then makes the
+/// CPU's trees bit for bit whatever the host's flags.
+inline float fused_proof_half_area(float ex, float ey, float ez) noexcept {
+    const double x = ex, y = ey, z = ez;
+    return static_cast<float>((x * y + y * z) + z * x);
+}
+/// fused_proof_half_area of a box (0 for an empty box, as AABB::half_area).
+inline float fused_proof_half_area(const AABB& b) noexcept {
+    const vec3 e = b.extent();
+    return fused_proof_half_area(e.x, e.y, e.z);
+}
+
 /// The leaf settings of the SAH, one object composed into every builder's
 /// Config (member `leaf`) and into BuildOptions, with the cost terms the
 /// builders compare. The defaults are every builder's.
@@ -44,7 +60,11 @@ struct LeafCost {
     /// Ci·SA·blocks(n): the cost of a leaf of n primitives with surface area sa.
     float leaf_cost(float sa, std::uint32_t n) const noexcept { return intersection_cost * sa * blocks(n); }
     /// Ct·SA + children: the cost of an inner node over children that cost `children`.
-    float split_cost(float sa, float children) const noexcept { return traversal_cost * sa + children; }
+    /// The product is exact in double, so multiply-add fusion cannot change the result (the
+    /// device builder computes the same float).
+    float split_cost(float sa, float children) const noexcept {
+        return static_cast<float>(static_cast<double>(traversal_cost) * sa + children);
+    }
     /// Largest primitive count of a merged leaf for the bottom-up builders (0 acts as 1).
     std::uint32_t leaf_limit() const noexcept { return max_leaf_size > 1 ? max_leaf_size : 1u; }
 };

@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "raykit/bvh/node.hpp"
+#include "raykit/bvh/sah.hpp"
 
 namespace raykit {
 
@@ -239,7 +240,7 @@ private:
                 for (int i = 0; i < k; ++i) {
                     const Node& c = bvh.nodes[kids[i]];
                     if (c.is_leaf()) continue;
-                    const float a = c.box.half_area();
+                    const float a = fused_proof_half_area(c.box);
                     if (best < 0 || a > best_area) best = i, best_area = a;
                 }
                 if (best < 0) break;
