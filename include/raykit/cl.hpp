@@ -29,5 +29,6 @@
 #include "raykit/cl/trace.hpp"
 #include "raykit/cl/hook.hpp"
 #include "raykit/cl/refit.hpp"
+#include "raykit/cl/device_build.hpp"
 #include "raykit/cl/render.hpp"
 #include "raykit/cl/device_scene.hpp"

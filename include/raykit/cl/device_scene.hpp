@@ -66,7 +66,9 @@
 #include <utility>
 #include <vector>
 
+#include "raykit/bvh/rebuild_policy.hpp"
 #include "raykit/cl/buffer.hpp"
+#include "raykit/cl/device_build.hpp"
 #include "raykit/cl/device_tree.hpp"
 #include "raykit/cl/hook.hpp"
 #include "raykit/cl/layout.hpp"
@@ -89,12 +91,28 @@ struct LaunchCounts {
     std::size_t total() const noexcept { return vertex + refit + top_level + trace + camera; }
 };
 
-/// Wall-clock milliseconds of one update(), each stage waited for.
+/// Wall-clock milliseconds of one update(), each stage waited for, and what its rebuild stage did.
 struct FrameTimes {
     double vertex_ms = 0.0;
     double refit_ms = 0.0;
+    double rebuild_ms = 0.0;        ///< the policy's cost measure and any rebuilds (DeviceRebuild)
     double top_level_ms = 0.0;
-    double total_ms() const noexcept { return vertex_ms + refit_ms + top_level_ms; }
+    std::uint32_t rebuilt = 0;          ///< dynamic objects rebuilt this update
+    std::uint32_t rebuilt_on_host = 0;  ///< of those, built on the CPU (too deep for the device builder)
+    double worst_growth = 1.0;          ///< largest cost growth (refit / last build) the policy saw
+    double total_ms() const noexcept { return vertex_ms + refit_ms + rebuild_ms + top_level_ms; }
+};
+
+/// Rebuilding dynamic objects' trees on the device when refitting has made them poor
+/// (DeviceScene's rebuild stage). Off by default: with it, each dynamic object's ranges of
+/// the node and block arrays hold any tree over its triangles (DeviceBuilder::node_capacity,
+/// block_capacity: about 420 bytes per triangle), and refits run one-pass.
+struct DeviceRebuild {
+    bool enabled = false;
+    /// Per object: rebuild when the refitted tree's SAH cost (rk_tree_cost: the wide tree's,
+    /// blocks as leaf weight) over the cost after its last build passes the threshold.
+    RebuildPolicy policy{};
+    DeviceBuildConfig build{};  ///< what the device builds (PLOC; cl/device_build.hpp)
 };
 
 /// A DeviceScene's device arrays and top level, whatever its hooks: what other
@@ -186,10 +204,14 @@ class DeviceScene : public DeviceSceneArrays {
     static constexpr std::size_t hook_index = index_of<H>(std::make_index_sequence<kHooks>{});
 
 public:
-    DeviceScene(Device& dev, const Scene& scene) : DeviceSceneArrays(dev, scene) {
+    DeviceScene(Device& dev, const Scene& scene, const DeviceRebuild& rebuild = {})
+        : DeviceSceneArrays(dev, scene), rebuild_(rebuild) {
+        if (rebuild_.enabled && !dev.info().fp64)
+            throw std::invalid_argument("raykit::cl::DeviceScene: device rebuilds need cl_khr_fp64 (DeviceBuilder)");
         const auto& objs = scene.objects();
         if (objs.size() >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::DeviceScene: too many objects");
         records_.resize(objs.size());
+        block_count_.resize(objs.size());
         hook_of_.assign(objs.size(), kNoHook);
         params_.resize(objs.size());
         std::vector<DeviceNode> nodes;
@@ -212,6 +234,15 @@ public:
             r.triangle_count = checked(o.mesh.triangles.size());
             nodes.insert(nodes.end(), tree.nodes.begin(), tree.nodes.end());
             blocks.insert(blocks.end(), tree.blocks.begin(), tree.blocks.end());
+            block_count_[i] = checked(tree.blocks.size());
+            std::uint32_t capacity = 0;
+            if (o.dynamic() && rebuild_.enabled) {  // room for any tree over its triangles
+                DeviceNode empty;
+                for (int c = 0; c < kDeviceWidth; ++c) empty.clear(c);
+                capacity = checked(DeviceBuilder::node_capacity(o.mesh.triangles.size()));
+                nodes.resize(r.node_offset + std::size_t(capacity), empty);
+                blocks.resize(r.block_offset + DeviceBuilder::block_capacity(o.mesh.triangles.size()), TriangleBlock4{});
+            }
             tris.insert(tris.end(), o.mesh.triangles.begin(), o.mesh.triangles.end());
             for (const vec3& p : o.mesh.positions) pos.insert(pos.end(), {p.x, p.y, p.z});
             checked(pos.size() / 3);
@@ -222,7 +253,7 @@ public:
                 dynamic_.push_back(i);
                 rest_offset_.push_back(checked(rest.size()));
                 rest.insert(rest.end(), o.rest.begin(), o.rest.end());
-                trees.push_back({{}, i, r.node_offset});
+                trees.push_back({{}, i, r.node_offset, capacity});
                 dynamic_trees.push_back(std::move(tree.nodes));
             }
         };
@@ -245,6 +276,14 @@ public:
             refit_plan_ = RefitPlan(dev, trees);
             which_roots_ = Buffer<std::uint32_t>(dev, dynamic_, CL_MEM_READ_ONLY);
             root_boxes_ = Buffer<AABB>(dev, dynamic_.size());
+            if (rebuild_.enabled) {
+                policies_.assign(dynamic_.size(), rebuild_.policy);
+                costs_ = Buffer<float>(dev, dynamic_.size());
+                std::vector<std::uint32_t> counts;
+                for (std::uint32_t o : dynamic_) counts.push_back(records_[o].node_count);
+                node_counts_ = Buffer<std::uint32_t>(dev, counts);
+                baselines_pending_ = true;
+            }
         }
     }
     DeviceScene(const DeviceScene&) = delete;
@@ -311,9 +350,17 @@ public:
 
     /// Runs the frame's stages (see the top of this file).
     FrameTimes update(RefitMethod method = RefitMethod::one_pass, TopLevelUpdate top = TopLevelUpdate::rebuild) {
+        if (rebuild_.enabled && method == RefitMethod::level_wise)
+            throw std::invalid_argument("raykit::cl::DeviceScene::update: device rebuilds refit one-pass (level-wise "
+                                        "refit needs the host's level tables)");
         using clock = std::chrono::steady_clock;
         auto ms = [](clock::time_point a) { return std::chrono::duration<double, std::milli>(clock::now() - a).count(); };
         if (!dynamic_.empty()) ensure_program();  // a static scene launches nothing here (built at its first trace)
+        if (baselines_pending_) {  // the uploaded trees' costs start the rebuild policies
+            const std::vector<float> cost = tree_costs();
+            for (std::size_t d = 0; d < dynamic_.size(); ++d) policies_[d].reset(cost[d]);
+            baselines_pending_ = false;
+        }
         FrameTimes ft;
         auto t0 = clock::now();
         const bool moved = run_vertex_stage() || moved_by_host_;
@@ -326,6 +373,9 @@ public:
             dev_->finish();
         }
         ft.refit_ms = ms(t0);
+        t0 = clock::now();
+        if (moved && rebuild_.enabled) rebuild_stage(ft);
+        ft.rebuild_ms = ms(t0);
         t0 = clock::now();
         if (moved) gather_roots();
         update_top_level(top);
@@ -413,7 +463,7 @@ public:
         return out;
     }
     std::vector<DeviceNode> nodes(std::uint32_t object) {
-        const ObjectRecord& r = records_.at(object);
+        const ObjectRecord& r = records_.at(object);  // node_count: the current tree's (after device rebuilds too)
         std::vector<DeviceNode> out(r.node_count);
         if (!out.empty()) nodes_.read(*dev_, std::span<DeviceNode>(out), r.node_offset);
         return out;
@@ -421,10 +471,7 @@ public:
     /// An object's current triangle blocks (its tree's leaves).
     std::vector<TriangleBlock4> blocks(std::uint32_t object) {
         const ObjectRecord& r = records_.at(object);
-        std::size_t end = blocks_.size();  // the next object's first block in the buffer (dynamic objects come first)
-        for (const ObjectRecord& o : records_)
-            if (o.block_offset > r.block_offset) end = std::min<std::size_t>(end, o.block_offset);
-        std::vector<TriangleBlock4> out(end - r.block_offset);
+        std::vector<TriangleBlock4> out(block_count_.at(object));
         if (!out.empty()) blocks_.read(*dev_, std::span<TriangleBlock4>(out), r.block_offset);
         return out;
     }
@@ -435,6 +482,10 @@ public:
         return out;
     }
     const RefitPlan& refit_plan() const noexcept { return refit_plan_; }
+    /// The rebuild settings it was made with.
+    const DeviceRebuild& rebuild_settings() const noexcept { return rebuild_; }
+    /// Launches of the device builder so far (its stages are many small kernels).
+    std::size_t build_launches() const noexcept { return builder_.launches(); }
     std::size_t dynamic_object_count() const noexcept { return dynamic_.size(); }
 
 private:
@@ -477,6 +528,7 @@ private:
         parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
         for (SourcePart& p : trace_parts(packets_, TraceKernels::scene)) parts.push_back(std::move(p));
         if (!dynamic_.empty()) parts.push_back(refit_part());
+        if (!dynamic_.empty() && rebuild_.enabled) parts.push_back(build_part());
         for_each_hook([&]<std::size_t I>() {
             if (used & (1ull << I)) {
                 const auto hp = hook_parts<std::tuple_element_t<I, HookList>>();
@@ -489,6 +541,10 @@ private:
         if (!dynamic_.empty()) {
             refit_kernels_ = RefitKernels(program_);
             k_roots_ = program_.kernel("rk_gather_roots");
+            if (rebuild_.enabled) {
+                builder_ = DeviceBuilder(*dev_, program_, rebuild_.build);
+                k_cost_ = program_.kernel("rk_tree_cost");
+            }
         }
         for_each_hook([&]<std::size_t I>() {
             hooks_[I].kernel = (used & (1ull << I))
@@ -546,6 +602,59 @@ private:
         });
         tables_dirty_ = false;
         return ran;
+    }
+
+    /// The dynamic trees' SAH costs (rk_tree_cost; one launch, one read of a float each).
+    std::vector<float> tree_costs() {
+        const auto m = static_cast<std::uint32_t>(dynamic_.size());
+        set_args(k_cost_, nodes_, objects_, which_roots_, node_counts_, costs_, m);
+        launches_.refit += launch(dev_->queue(), k_cost_, m, 64);
+        return costs_.read(*dev_);
+    }
+
+    /// The rebuild stage: the policy per dynamic object, then a device build of each decided one
+    /// (on the CPU when the device builder gives up), then the new trees' costs as baselines.
+    void rebuild_stage(FrameTimes& ft) {
+        std::vector<float> cost = tree_costs();
+        bool any = false;
+        rebuilt_now_.assign(dynamic_.size(), 0);
+        for (std::size_t d = 0; d < dynamic_.size(); ++d) {
+            ft.worst_growth = std::max(ft.worst_growth, policies_[d].growth(cost[d]));
+            if (!policies_[d].should_rebuild(cost[d])) continue;
+            rebuild_object(d, ft);
+            any = true;
+        }
+        if (!any) return;
+        cost = tree_costs();
+        for (std::size_t d = 0; d < dynamic_.size(); ++d)
+            if (rebuilt_now_[d]) policies_[d].reset(cost[d]);
+    }
+
+    void rebuild_object(std::size_t d, FrameTimes& ft) {
+        const std::uint32_t o = dynamic_[d];
+        ObjectRecord& r = records_[o];
+        const DeviceBuildResult res =
+            builder_.build(triangles_, positions_, r, o, {&nodes_, &blocks_, refit_plan_.tables()});
+        std::uint32_t node_count = res.nodes, block_count = res.blocks;
+        if (res.built) {
+            refit_plan_.mark_rebuilt_on_device();
+        } else {  // too deep for the device: the CPU twin (reads the positions back)
+            const std::vector<vec3> pos = positions(o);
+            const MeshView mesh(pos, scene_->objects()[o].mesh.triangles);
+            const DeviceTree tree = device_tree(cpu_twin_build(mesh, rebuild_.build));
+            nodes_.write(*dev_, std::span<const DeviceNode>(tree.nodes), r.node_offset);
+            blocks_.write(*dev_, std::span<const TriangleBlock4>(tree.blocks), r.block_offset);
+            refit_plan_.write_tree(*dev_, {tree.nodes, o, r.node_offset, checked(DeviceBuilder::node_capacity(r.triangle_count))});
+            node_count = checked(tree.nodes.size());
+            block_count = checked(tree.blocks.size());
+            ++ft.rebuilt_on_host;
+        }
+        ++ft.rebuilt;
+        rebuilt_now_[d] = 1;
+        r.node_count = node_count;
+        block_count_[o] = block_count;
+        objects_.write(*dev_, std::span<const ObjectRecord>(&r, 1), o);
+        node_counts_.write(*dev_, std::span<const std::uint32_t>(&node_count, 1), d);
     }
 
     void gather_roots() {
@@ -616,6 +725,15 @@ private:
     bool packets_ = packet_walk_default(*dev_);  ///< see packet_walk()
     RefitKernels refit_kernels_;
     RefitPlan refit_plan_;
+    DeviceRebuild rebuild_;
+    DeviceBuilder builder_;
+    ::cl::Kernel k_cost_;
+    std::vector<RebuildPolicy> policies_;      ///< per dynamic slot
+    std::vector<std::uint8_t> rebuilt_now_;    ///< per dynamic slot, this update
+    std::vector<std::uint32_t> block_count_;   ///< per object: blocks of its current tree
+    Buffer<float> costs_;
+    Buffer<std::uint32_t> node_counts_;        ///< per dynamic slot: nodes of its current tree
+    bool baselines_pending_ = false;
 
     Buffer<Vertex> rest_;
     Buffer<std::uint32_t> which_roots_;

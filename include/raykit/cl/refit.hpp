@@ -18,6 +18,12 @@
 // Trees live in one concatenated node buffer at known offsets; the plan keeps
 // parent and counter arrays for global node indices [0, node_space), so put
 // the refitted trees first in the buffer (DeviceScene does).
+//
+// A tree with spare capacity (RefitTree::capacity, for device rebuilds) makes the plan
+// node-indexed: one one-pass start entry per node of every range, (RK_INVALID, 0) where the
+// node has inner children or is unused, so a device build can rewrite its range's tables
+// without the host (cl/device_build.hpp). The level-wise method needs the host's level
+// tables, so after a device rebuild (mark_rebuilt_on_device) it throws.
 #pragma once
 
 #include <algorithm>
@@ -47,6 +53,16 @@ struct RefitTree {
     std::span<const DeviceNode> nodes;
     std::uint32_t object = 0;
     std::uint32_t node_offset = 0;
+    /// Nodes reserved for the tree (0: nodes.size()); more when it may be rebuilt on the
+    /// device into a tree of another size (cl/device_build.hpp).
+    std::uint32_t capacity = 0;
+};
+
+/// The one-pass refit's tables, which a device build rewrites for its object's node range.
+struct RefitTables {
+    Buffer<std::uint32_t>* parents;  ///< per global node: parent node, or RK_INVALID
+    Buffer<std::uint32_t>* needs;    ///< per global node: inner children
+    Buffer<cl_uint2>* starts;        ///< per global node (node-indexed plans): (node, object) or (RK_INVALID, 0)
 };
 
 /// Program part with the refit kernels.
@@ -74,7 +90,12 @@ public:
     RefitPlan() = default;
     RefitPlan(Device& dev, std::span<const RefitTree> trees) {
         std::size_t space = 0;
-        for (const RefitTree& t : trees) space = std::max<std::size_t>(space, std::size_t(t.node_offset) + t.nodes.size());
+        for (const RefitTree& t : trees) {
+            if (t.capacity != 0 && t.capacity < t.nodes.size())
+                throw std::invalid_argument("raykit::cl::RefitPlan: a tree's capacity is smaller than the tree");
+            space = std::max<std::size_t>(space, std::size_t(t.node_offset) + std::max<std::size_t>(t.capacity, t.nodes.size()));
+            node_indexed_ = node_indexed_ || t.capacity > t.nodes.size();
+        }
         if (space >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::RefitPlan: too many nodes");
         std::vector<std::uint32_t> parents(space, kInvalidIndex), needs(space, 0u);
         std::vector<std::vector<cl_uint2>> levels;
@@ -105,13 +126,18 @@ public:
             level_ranges_.push_back({static_cast<std::uint32_t>(entries.size()), static_cast<std::uint32_t>(levels[l].size())});
             entries.insert(entries.end(), levels[l].begin(), levels[l].end());
         }
+        if (node_indexed_) {
+            std::vector<cl_uint2> by_node(space, cl_uint2{{kInvalidIndex, 0u}});
+            for (const cl_uint2& e : starts) by_node[e.s[0]] = e;
+            starts = std::move(by_node);
+        }
         start_count_ = starts.size();
         node_count_ = entries.size();
         if (node_count_ == 0) return;
         entries_ = Buffer<cl_uint2>(dev, entries, CL_MEM_READ_ONLY);
-        starts_ = Buffer<cl_uint2>(dev, starts, CL_MEM_READ_ONLY);
-        parents_ = Buffer<std::uint32_t>(dev, parents, CL_MEM_READ_ONLY);
-        needs_ = Buffer<std::uint32_t>(dev, needs, CL_MEM_READ_ONLY);
+        starts_ = Buffer<cl_uint2>(dev, starts);
+        parents_ = Buffer<std::uint32_t>(dev, parents);
+        needs_ = Buffer<std::uint32_t>(dev, needs);
         counters_ = Buffer<std::uint32_t>(dev, std::vector<std::uint32_t>(space, 0u), CL_MEM_READ_WRITE);
     }
 
@@ -120,6 +146,9 @@ public:
         if (node_count_ == 0) return 0;
         std::size_t launches = 0;
         if (method == RefitMethod::level_wise) {
+            if (rebuilt_)
+                throw std::logic_error("raykit::cl::RefitPlan: level-wise refit after a device rebuild (its level tables "
+                                       "are the host's); use RefitMethod::one_pass");
             for (const auto& [first, count] : level_ranges_) {
                 set_args(k.level, *b.nodes, *b.blocks, *b.triangles, *b.positions, *b.objects, entries_, first, count);
                 launches += launch(dev.queue(), k.level, count, kGroup);
@@ -132,9 +161,45 @@ public:
         return launches;
     }
 
+    /// Whether start entries are one per node (some tree has spare capacity).
+    bool node_indexed() const noexcept { return node_indexed_; }
+    /// The one-pass tables, for a device build to rewrite (node-indexed plans only).
+    RefitTables tables() {
+        if (!node_indexed_) throw std::logic_error("raykit::cl::RefitPlan::tables: the plan is not node-indexed");
+        return {&parents_, &needs_, &starts_};
+    }
+    /// A device build rewrote some range: the level tables no longer hold.
+    void mark_rebuilt_on_device() noexcept { rebuilt_ = true; }
+    /// Rewrites the one-pass tables of t's node range [node_offset, node_offset + capacity)
+    /// from a host tree (a tree built on the CPU after the plan was made; node-indexed plans).
+    void write_tree(Device& dev, const RefitTree& t) {
+        if (!node_indexed_) throw std::logic_error("raykit::cl::RefitPlan::write_tree: the plan is not node-indexed");
+        const std::size_t cap = t.capacity != 0 ? t.capacity : t.nodes.size();
+        if (t.nodes.size() > cap || std::size_t(t.node_offset) + cap > start_count_)
+            throw std::invalid_argument("raykit::cl::RefitPlan::write_tree: the tree does not fit its range");
+        std::vector<std::uint32_t> parents(cap, kInvalidIndex), needs(cap, 0u);
+        std::vector<cl_uint2> starts(cap, cl_uint2{{kInvalidIndex, 0u}});
+        for (std::size_t i = 0; i < t.nodes.size(); ++i) {
+            const DeviceNode& n = t.nodes[i];
+            for (int c = 0; c < kDeviceWidth; ++c) {
+                if (n.count[c] != 0 || n.unused(c)) continue;
+                if (n.index[c] >= t.nodes.size() || n.index[c] <= i)
+                    throw std::invalid_argument("raykit::cl::RefitPlan: a child does not come after its parent");
+                parents[n.index[c]] = static_cast<std::uint32_t>(t.node_offset + i);
+                ++needs[i];
+            }
+        }
+        for (std::size_t i = 0; i < t.nodes.size(); ++i)
+            if (needs[i] == 0) starts[i] = cl_uint2{{static_cast<cl_uint>(t.node_offset + i), t.object}};
+        parents_.write(dev, std::span<const std::uint32_t>(parents), t.node_offset);
+        needs_.write(dev, std::span<const std::uint32_t>(needs), t.node_offset);
+        starts_.write(dev, std::span<const cl_uint2>(starts), t.node_offset);
+        rebuilt_ = true;
+    }
+
     /// Launches of the level-wise method (tree levels, node 0 included).
     std::size_t levels() const noexcept { return level_ranges_.size(); }
-    /// Work items of the one-pass method: nodes without inner children.
+    /// Work items of the one-pass method: nodes without inner children (node-indexed: all nodes).
     std::size_t leaves() const noexcept { return start_count_; }
     /// Wide nodes refitted.
     std::size_t nodes() const noexcept { return node_count_; }
@@ -146,6 +211,7 @@ private:
     };
     std::vector<Range> level_ranges_;
     std::size_t start_count_ = 0, node_count_ = 0;
+    bool node_indexed_ = false, rebuilt_ = false;
     Buffer<cl_uint2> entries_, starts_;
     Buffer<std::uint32_t> parents_, needs_, counters_;
 };

@@ -130,6 +130,7 @@ __kernel void rk_refit_one_pass(__global rk_wnode* nodes, __global rk_block* blo
     const uint i = (uint)get_global_id(0);
     if (i >= count) return;
     const uint2 e = starts[i];
+    if (e.x == RK_INVALID) return;  /* node-indexed plans: a node with inner children, or unused */
     const rk_object ob = objects[e.y];
     uint g = e.x;
     rk_refit_node(nodes, g, blocks, tris, pos, &ob);

@@ -1,0 +1,658 @@
+// raykit/kernels/build.hpp — PLOC on the device: an object's 8-wide tree and triangle blocks
+// built from its current vertices, the twin of PlocBuilder (bvh/ploc.hpp, post-pass off) →
+// BlockBvh8::build(mesh, bvh) → device_tree() on the CPU, bit for bit (cl/device_build.hpp).
+//
+// Stages (one work item per primitive, cluster or node unless said):
+//   rk_build_refs      triangle boxes (MeshView::bounds) and centres (AABB::center; NaN when empty)
+//   rk_build_bounds    one work-group: bounds of the finite centres (sanitize_centers)
+//   rk_build_morton    63-bit Morton keys (MortonQuantizer) and indices, padded to a power of two
+//   rk_sort_local / rk_sort_global   bitonic sort by (key, index): the CPU's stable radix sort
+//                      of keys over indices 0..n-1 gives the same order
+//   rk_ploc_init       clusters in key order, working boxes (working_box)
+//   per round: rk_ploc_nn (nearest of R on each side, fused_proof_half_area, first smallest),
+//              rk_ploc_flags (mutual pairs), rk_scan_* (exclusive sums of keeps and merges),
+//              rk_ploc_merge (new node i takes the lower place, numbered in array order),
+//              rk_ploc_advance (cluster and node counts in `state`)
+//   rk_tree_parents, rk_tree_up   real boxes, counts and the leaf merge (node_cost) bottom-up;
+//                      the last of two children to arrive computes the parent (atomic counter)
+//   rk_tree_slots      each primitive walks up: its prim_ids slot (left-to-right order), its
+//                      leaf's first slot and size; block starts flagged, then scanned
+//   rk_tree_blocks     the leaves' TriangleBlock4s (lanes past a leaf's end repeat its last)
+//   rk_tree_roots      whether an inner node starts a wide node: the collapse of wide.hpp
+//                      (open the child of largest area until 8) replayed from the root down
+//                      the node's path; wide nodes are numbered in descending merge id, so a
+//                      child comes after its parent
+//   rk_tree_wide       the wide nodes (device_tree's form: node 0 the root box alone) and the
+//                      refit tables of the new topology (parents, needs, one-pass starts)
+//   rk_tree_cost       the SAH cost of objects' wide trees, for the rebuild policy
+// Decisions use the same floats as the CPU: areas through fused_proof_half_area (products
+// exact in double), FP_CONTRACT off, min/max by the same selects.
+#pragma once
+
+namespace raykit::kernels {
+
+inline constexpr const char* kBuild = R"CLC(
+#pragma OPENCL FP_CONTRACT OFF
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+
+/* raykit::fused_proof_half_area */
+RK_INLINE float rk_half_area3(const float ex, const float ey, const float ez) {
+    const double x = ex, y = ey, z = ez;
+    return (float)((x * y + y * z) + z * x);
+}
+RK_INLINE float rk_box_half_area(const rk_box b) {
+    const int empty = !(b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z);
+    if (empty) return 0.0f;
+    const float3 e = b.hi - b.lo;
+    return rk_half_area3(e.x, e.y, e.z);
+}
+RK_INLINE rk_box rk_load_box(__global const float* b, const uint i) {
+    rk_box r;
+    r.lo = vload3(2 * i, b);
+    r.hi = vload3(2 * i + 1, b);
+    return r;
+}
+RK_INLINE void rk_store_box(__global float* b, const uint i, const rk_box r) {
+    vstore3(r.lo, 2 * i, b);
+    vstore3(r.hi, 2 * i + 1, b);
+}
+RK_INLINE int rk_finite3(const float3 p) { return all(isfinite(p)); }
+
+/* state: [0] clusters, [1] merge-tree nodes, [2] rounds, [3] wide nodes, [4] blocks,
+   [5] height of the root, [6] the root's id; fstate: [0..5] centroid bounds */
+
+__kernel void rk_build_refs(__global const uint* tris, __global const float* pos, const uint tri_off,
+                            const uint vert_off, const uint n, __global float* rbox, __global float* cen) {
+    const uint i = (uint)get_global_id(0);
+    if (i >= n) return;
+    const uint3 t = vload3(tri_off + i, tris);
+    const rk_box b = rk_triangle_box(vload3(vert_off + t.x, pos), vload3(vert_off + t.y, pos),
+                                     vload3(vert_off + t.z, pos));
+    rk_store_box(rbox, i, b);
+    const int empty = !(b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z);
+    vstore3(empty ? (float3)(NAN) : (b.lo + b.hi) * 0.5f, i, cen);
+}
+
+/* One work-group of RK_BUILD_GROUP items. Bounds of the finite centres; a non-finite centre
+   is later read as the centre of those (empty: the origin, and the bounds that point). */
+__kernel void rk_build_bounds(__global const float* cen, const uint n, __global float* fstate,
+                              __global uint* state) {
+    __local float lo[3][RK_BUILD_GROUP], hi[3][RK_BUILD_GROUP];
+    const uint l = (uint)get_local_id(0);
+    float3 a = (float3)(INFINITY), b = (float3)(-INFINITY);
+    for (uint i = l; i < n; i += RK_BUILD_GROUP) {
+        const float3 c = vload3(i, cen);
+        if (!rk_finite3(c)) continue;
+        a = select(a, c, isless(c, a));
+        b = select(b, c, isgreater(c, b));
+    }
+    lo[0][l] = a.x; lo[1][l] = a.y; lo[2][l] = a.z;
+    hi[0][l] = b.x; hi[1][l] = b.y; hi[2][l] = b.z;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (l != 0) return;
+    for (uint k = 1; k < RK_BUILD_GROUP; ++k)
+        for (int x = 0; x < 3; ++x) {
+            lo[x][0] = lo[x][k] < lo[x][0] ? lo[x][k] : lo[x][0];
+            hi[x][0] = hi[x][k] > hi[x][0] ? hi[x][k] : hi[x][0];
+        }
+    const int empty = !(lo[0][0] <= hi[0][0] && lo[1][0] <= hi[1][0] && lo[2][0] <= hi[2][0]);
+    for (int x = 0; x < 3; ++x) {
+        fstate[x] = empty ? 0.0f : lo[x][0];
+        fstate[3 + x] = empty ? 0.0f : hi[x][0];
+    }
+    for (int k = 0; k < 8; ++k) state[k] = 0u;
+    state[0] = n;
+}
+
+RK_INLINE float3 rk_sanitized(__global const float* cen, __global const float* fstate, const uint i) {
+    const float3 c = vload3(i, cen);
+    return rk_finite3(c) ? c : (vload3(0, fstate) + vload3(1, fstate)) * 0.5f;
+}
+
+RK_INLINE ulong rk_spread21(ulong x) {
+    x &= 0x1FFFFFul;
+    x = (x | x << 32) & 0x1F00000000FFFFul;
+    x = (x | x << 16) & 0x1F0000FF0000FFul;
+    x = (x | x << 8) & 0x100F00F00F00F00Ful;
+    x = (x | x << 4) & 0x10C30C30C30C30C3ul;
+    x = (x | x << 2) & 0x1249249249249249ul;
+    return x;
+}
+
+__kernel void rk_build_morton(__global const float* cen, __global const float* fstate, const uint n,
+                              const uint padded, __global ulong* keys, __global uint* ids) {
+    const uint i = (uint)get_global_id(0);
+    if (i >= padded) return;
+    if (i >= n) {
+        keys[i] = 0xFFFFFFFFFFFFFFFFul;
+        ids[i] = RK_INVALID;
+        return;
+    }
+    const float3 lo = vload3(0, fstate), e = vload3(1, fstate) - lo;
+    const float m = e.x < e.y ? (e.y < e.z ? e.z : e.y) : (e.x < e.z ? e.z : e.x);
+    const float scale = m > 0.0f && m < INFINITY ? 2097151.0f / m : 0.0f;
+    const float3 p = rk_sanitized(cen, fstate, i);
+    ulong key = 0ul;
+    for (int a = 0; a < 3; ++a) {
+        float f = ((a == 0 ? p.x : a == 1 ? p.y : p.z) - (a == 0 ? lo.x : a == 1 ? lo.y : lo.z)) * scale;
+        f = f > 0.0f ? f : 0.0f;
+        f = f < 2097151.0f ? f : 2097151.0f;
+        key |= rk_spread21((ulong)f) << (2 - a);
+    }
+    keys[i] = key;
+    ids[i] = i;
+}
+
+RK_INLINE int rk_key_less(const ulong ka, const uint ia, const ulong kb, const uint ib) {
+    return ka < kb || (ka == kb && ia < ib);
+}
+
+/* Bitonic steps with stride < RK_SORT_LOCAL inside one block of RK_SORT_LOCAL entries
+   (local size RK_SORT_LOCAL / 2). k0 = 0: the whole sort of each block (k = 2 ..
+   RK_SORT_LOCAL); else the steps j = RK_SORT_LOCAL / 2 .. 1 of merge size k0. */
+__kernel void rk_sort_local(__global ulong* keys, __global uint* ids, const uint k0) {
+    __local ulong lk[RK_SORT_LOCAL];
+    __local uint li[RK_SORT_LOCAL];
+    const uint l = (uint)get_local_id(0), base = (uint)get_group_id(0) * RK_SORT_LOCAL;
+    lk[l] = keys[base + l];
+    li[l] = ids[base + l];
+    lk[l + RK_SORT_LOCAL / 2] = keys[base + l + RK_SORT_LOCAL / 2];
+    li[l + RK_SORT_LOCAL / 2] = ids[base + l + RK_SORT_LOCAL / 2];
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const uint kfirst = k0 == 0u ? 2u : k0, klast = k0 == 0u ? RK_SORT_LOCAL : k0;
+    for (uint k = kfirst; k <= klast; k <<= 1) {
+        for (uint j = (k0 == 0u ? k : RK_SORT_LOCAL) >> 1; j > 0u; j >>= 1) {
+            const uint a = 2u * l - (l & (j - 1u)), b = a + j;  /* a has bit j clear */
+            const int up = ((base + a) & k) == 0u;
+            const ulong ka = lk[a], kb = lk[b];
+            const uint ia = li[a], ib = li[b];
+            if (rk_key_less(kb, ib, ka, ia) == up) {
+                lk[a] = kb; li[a] = ib;
+                lk[b] = ka; li[b] = ia;
+            }
+            barrier(CLK_LOCAL_MEM_FENCE);
+        }
+    }
+    keys[base + l] = lk[l];
+    ids[base + l] = li[l];
+    keys[base + l + RK_SORT_LOCAL / 2] = lk[l + RK_SORT_LOCAL / 2];
+    ids[base + l + RK_SORT_LOCAL / 2] = li[l + RK_SORT_LOCAL / 2];
+}
+
+/* One bitonic step of merge size k and stride j >= RK_SORT_LOCAL; one item per pair. */
+__kernel void rk_sort_global(__global ulong* keys, __global uint* ids, const uint k, const uint j) {
+    const uint t = (uint)get_global_id(0);
+    const uint a = 2u * t - (t & (j - 1u)), b = a + j;
+    const int up = (a & k) == 0u;
+    const ulong ka = keys[a], kb = keys[b];
+    const uint ia = ids[a], ib = ids[b];
+    if (rk_key_less(kb, ib, ka, ia) == up) {
+        keys[a] = kb; ids[a] = ib;
+        keys[b] = ka; ids[b] = ia;
+    }
+}
+
+/* Clusters: six float arrays of `cap` (lx, ly, lz, hx, hy, hz) and node ids. */
+RK_INLINE rk_box rk_cluster_box(__global const float* c, const uint cap, const uint i) {
+    rk_box b;
+    b.lo = (float3)(c[i], c[cap + i], c[2 * cap + i]);
+    b.hi = (float3)(c[3 * cap + i], c[4 * cap + i], c[5 * cap + i]);
+    return b;
+}
+RK_INLINE void rk_cluster_set(__global float* c, const uint cap, const uint i, const rk_box b) {
+    c[i] = b.lo.x; c[cap + i] = b.lo.y; c[2 * cap + i] = b.lo.z;
+    c[3 * cap + i] = b.hi.x; c[4 * cap + i] = b.hi.y; c[5 * cap + i] = b.hi.z;
+}
+
+__kernel void rk_ploc_init(__global const uint* ids, __global const float* rbox, __global const float* cen,
+                           __global const float* fstate, const uint n, __global float* cl, __global uint* cnode) {
+    const uint s = (uint)get_global_id(0);
+    if (s >= n) return;
+    const uint p = ids[s];
+    rk_box b = rk_load_box(rbox, p);
+    const int usable = (b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z) && rk_finite3(b.lo) &&
+                       rk_finite3(b.hi);
+    if (!usable) b.lo = b.hi = rk_sanitized(cen, fstate, p);
+    rk_cluster_set(cl, n, s, b);
+    cnode[s] = p;
+}
+
+__kernel void rk_ploc_nn(__global const float* cl, const uint cap, __global const uint* state, const uint R,
+                         __global uint* nn) {
+    const uint i = (uint)get_global_id(0), m = state[0];
+    if (i >= m || m < 2u) return;
+    const rk_box a = rk_cluster_box(cl, cap, i);
+    const uint b = i >= R ? i - R : 0u, e = min(m, i + R + 1u);
+    uint best = RK_INVALID;
+    float bestd = 0.0f;
+    for (uint j = b; j < e; ++j) {
+        if (j == i) continue;
+        float ex = (cl[3 * cap + j] > a.hi.x ? cl[3 * cap + j] : a.hi.x) - (cl[j] < a.lo.x ? cl[j] : a.lo.x);
+        float ey = (cl[4 * cap + j] > a.hi.y ? cl[4 * cap + j] : a.hi.y) -
+                   (cl[cap + j] < a.lo.y ? cl[cap + j] : a.lo.y);
+        float ez = (cl[5 * cap + j] > a.hi.z ? cl[5 * cap + j] : a.hi.z) -
+                   (cl[2 * cap + j] < a.lo.z ? cl[2 * cap + j] : a.lo.z);
+        ex = ex < FLT_MAX ? ex : FLT_MAX;
+        ey = ey < FLT_MAX ? ey : FLT_MAX;
+        ez = ez < FLT_MAX ? ez : FLT_MAX;
+        const float d = rk_half_area3(ex, ey, ez);
+        if (best == RK_INVALID || d < bestd) {
+            best = j;
+            bestd = d;
+        }
+    }
+    nn[i] = best;
+}
+
+/* (keep, merge) of cluster i: a mutual pair i < j merges into i's place, j's is dropped. */
+__kernel void rk_ploc_flags(__global const uint* nn, __global const uint* state, const uint cap, __global uint2* flags) {
+    const uint i = (uint)get_global_id(0);
+    if (i >= cap) return;
+    const uint m = state[0];
+    if (i >= m || m < 2u) {
+        flags[i] = (uint2)(0u, 0u);
+        return;
+    }
+    const uint j = nn[i];
+    const int mutual = nn[j] == i;
+    flags[i] = (uint2)((mutual && j < i) ? 0u : 1u, (mutual && i < j) ? 1u : 0u);
+}
+
+/* Exclusive sums of uint2 over `count` entries: blocks of RK_SCAN_BLOCK entries (one
+   work-group of RK_SCAN_GROUP items each), then the block sums, then the offsets added. */
+__kernel void rk_scan_blocks(__global const uint2* in, __global uint2* out, __global uint2* sums, const uint count) {
+    __local uint2 part[RK_SCAN_GROUP];
+    const uint l = (uint)get_local_id(0);
+    const uint per = RK_SCAN_BLOCK / RK_SCAN_GROUP;
+    const uint first = (uint)get_group_id(0) * RK_SCAN_BLOCK + l * per;
+    uint2 s = (uint2)(0u, 0u);
+    for (uint k = first; k < first + per && k < count; ++k) s += in[k];
+    part[l] = s;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (l == 0u) {
+        uint2 acc = (uint2)(0u, 0u);
+        for (uint k = 0; k < RK_SCAN_GROUP; ++k) {
+            const uint2 v = part[k];
+            part[k] = acc;
+            acc += v;
+        }
+        sums[get_group_id(0)] = acc;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    uint2 acc = part[l];
+    for (uint k = first; k < first + per && k < count; ++k) {
+        const uint2 v = in[k];
+        out[k] = acc;
+        acc += v;
+    }
+}
+/* One work item: the block sums made exclusive; the total goes to total[0]. */
+__kernel void rk_scan_sums(__global uint2* sums, const uint blocks, __global uint2* total) {
+    if (get_global_id(0) != 0) return;
+    uint2 acc = (uint2)(0u, 0u);
+    for (uint k = 0; k < blocks; ++k) {
+        const uint2 v = sums[k];
+        sums[k] = acc;
+        acc += v;
+    }
+    total[0] = acc;
+}
+__kernel void rk_scan_add(__global uint2* out, __global const uint2* sums, const uint count) {
+    const uint k = (uint)get_global_id(0);
+    if (k < count) out[k] += sums[k / RK_SCAN_BLOCK];
+}
+
+__kernel void rk_ploc_merge(__global const float* cl, __global const uint* cnode, __global float* next,
+                            __global uint* nnode, const uint cap, __global const uint* nn,
+                            __global const uint2* pos, __global const uint* state, const uint n,
+                            __global uint2* kids) {
+    const uint i = (uint)get_global_id(0), m = state[0];
+    if (i >= m || m < 2u) return;
+    const uint j = nn[i];
+    const int mutual = nn[j] == i;
+    if (mutual && j < i) return;
+    const uint2 p = pos[i];
+    rk_box b = rk_cluster_box(cl, cap, i);
+    uint id = cnode[i];
+    if (mutual) {
+        const uint k = state[1] + p.y;
+        kids[k] = (uint2)(cnode[i], cnode[j]);
+        rk_box_grow(&b, rk_cluster_box(cl, cap, j));
+        id = n + k;
+    }
+    rk_cluster_set(next, cap, p.x, b);
+    nnode[p.x] = id;
+}
+
+/* After a round: the new cluster count, merge-tree size and round count (total: the scan's). */
+__kernel void rk_ploc_advance(__global uint* state, __global const uint2* total) {
+    if (get_global_id(0) != 0 || state[0] < 2u) return;
+    state[0] = total[0].x;
+    state[1] += total[0].y;
+    state[2] += 1u;
+}
+
+/* ---------------------------------------------------------------- back end */
+
+/* Per merge-tree node (ids < n primitives, n + k inner): parent. */
+__kernel void rk_tree_parents(__global const uint2* kids, const uint n, __global uint* parent) {
+    const uint k = (uint)get_global_id(0);
+    if (k >= n - 1u) return;
+    parent[kids[k].x] = n + k;
+    parent[kids[k].y] = n + k;
+    if (k == n - 2u) parent[n + k] = RK_INVALID;
+}
+
+typedef struct {
+    uint count, out, height;
+    float cost;
+} rk_subtree;
+
+RK_INLINE rk_subtree rk_read_sub(__global const float* rbox, volatile __global const float* ibox,
+                                 volatile __global const uint* icnt, const uint n, const uint x, const float ci,
+                                 rk_box* box) {
+    rk_subtree s;
+    if (x < n) {
+        *box = rk_load_box(rbox, x);
+        s.count = 1u;
+        s.out = 1u;
+        s.height = 0u;
+        s.cost = ci * rk_box_half_area(*box);
+    } else {
+        const uint k = x - n;
+        box->lo = (float3)(ibox[6 * k], ibox[6 * k + 1], ibox[6 * k + 2]);
+        box->hi = (float3)(ibox[6 * k + 3], ibox[6 * k + 4], ibox[6 * k + 5]);
+        s.count = icnt[4 * k];
+        s.out = icnt[4 * k + 1];
+        s.height = icnt[4 * k + 2];
+        s.cost = as_float(icnt[4 * k + 3]);
+    }
+    return s;
+}
+
+/* One item per primitive; at each parent the second child to arrive computes it: real box
+   (kid 0's grown by kid 1's), count, output size, height and the leaf merge's best cost
+   (node_cost: a leaf when count <= max_leaf and Ci·SA·blocks <= Ct·SA + children). */
+__kernel void rk_tree_up(__global const uint2* kids, __global const uint* parent, __global uint* counters,
+                         __global const float* rbox, __global float* ibox, __global uint* icnt, const uint n,
+                         const float ct, const float ci, const uint max_leaf, const uint block_shift,
+                         __global uint* state) {
+    const uint p = (uint)get_global_id(0);
+    if (p >= n) return;
+    uint g = parent[p];
+    while (g != RK_INVALID) {
+        const uint k = g - n;
+        mem_fence(CLK_GLOBAL_MEM_FENCE);
+        if (atomic_inc(&counters[k]) == 0u) return;  /* the sibling computes g */
+        mem_fence(CLK_GLOBAL_MEM_FENCE);
+        counters[k] = 0u;
+        rk_box ba, bb;
+        const rk_subtree a = rk_read_sub(rbox, ibox, icnt, n, kids[k].x, ci, &ba);
+        const rk_subtree b = rk_read_sub(rbox, ibox, icnt, n, kids[k].y, ci, &bb);
+        rk_box_grow(&ba, bb);
+        const float sa = rk_box_half_area(ba);
+        const uint cnt = a.count + b.count;
+        const float split = (float)((double)ct * sa + (double)(a.cost + b.cost));
+        const float leaf = ci * sa * (float)((cnt + (1u << block_shift) - 1u) >> block_shift);
+        const int is_leaf = cnt <= max_leaf && leaf <= split;
+        ibox[6 * k] = ba.lo.x; ibox[6 * k + 1] = ba.lo.y; ibox[6 * k + 2] = ba.lo.z;
+        ibox[6 * k + 3] = ba.hi.x; ibox[6 * k + 4] = ba.hi.y; ibox[6 * k + 5] = ba.hi.z;
+        icnt[4 * k] = cnt;
+        icnt[4 * k + 1] = is_leaf ? 1u : 1u + a.out + b.out;
+        icnt[4 * k + 2] = 1u + max(a.height, b.height);
+        icnt[4 * k + 3] = as_uint(is_leaf ? leaf : split);
+        if (parent[g] == RK_INVALID) state[5] = 1u + max(a.height, b.height);
+        g = parent[g];
+    }
+}
+
+RK_INLINE uint rk_count_of(__global const uint* icnt, const uint n, const uint x) { return x < n ? 1u : icnt[4 * (x - n)]; }
+RK_INLINE uint rk_out_of(__global const uint* icnt, const uint n, const uint x) { return x < n ? 1u : icnt[4 * (x - n) + 1]; }
+
+/* One item per primitive: its prim_ids slot (left-to-right order of the merge tree), the
+   first slot and size of the leaf it ends in, and whether it starts a block.
+   The leaf is p's highest ancestor-or-self of output size 1 (the back end's top-down emission
+   stops at the first such node). first[x]: first slot of node x. */
+__kernel void rk_tree_slots(__global const uint2* kids, __global const uint* parent, __global const uint* icnt,
+                            const uint n, __global uint* prims, __global uint2* leaf_of, __global uint2* bflag,
+                            __global uint* first) {
+    const uint p = (uint)get_global_id(0);
+    if (p >= n) return;
+    uint x = p, s = 0u, below = 0u, leaf = p;
+    for (;;) {
+        if (rk_out_of(icnt, n, x) == 1u) {  /* the highest such node is the leaf */
+            leaf = x;
+            below = s;
+        }
+        const uint g = parent[x];
+        if (g == RK_INVALID) break;
+        const uint2 kk = kids[g - n];
+        if (kk.y == x) s += rk_count_of(icnt, n, kk.x);
+        x = g;
+    }
+    prims[s] = p;
+    const uint lfirst = s - below;
+    leaf_of[s] = (uint2)(lfirst, rk_count_of(icnt, n, leaf));
+    bflag[s] = (uint2)(((s - lfirst) & 3u) == 0u ? 1u : 0u, 0u);
+    /* first slot of every node whose leftmost primitive is p */
+    x = p;
+    for (;;) {
+        first[x] = s;
+        const uint g = parent[x];
+        if (g == RK_INVALID || kids[g - n].x != x) break;
+        x = g;
+    }
+}
+
+__kernel void rk_tree_blocks(__global const uint* prims, __global const uint2* leaf_of, __global const uint2* bflag,
+                             __global const uint2* bpos, const uint n, __global const uint* tris,
+                             __global const float* pos, const uint tri_off, const uint vert_off,
+                             __global rk_block* blocks, const uint block_off, __global uint* state) {
+    const uint s = (uint)get_global_id(0);
+    if (s >= n) return;
+    if (s == n - 1u) state[4] = bpos[s].x + bflag[s].x;
+    if (bflag[s].x == 0u) return;
+    __global rk_block* blk = blocks + block_off + bpos[s].x;
+    const uint2 lf = leaf_of[s];
+    for (int i = 0; i < 4; ++i) {
+        const uint t = min(s + (uint)i, lf.x + lf.y - 1u);
+        const uint pr = prims[t];
+        const uint3 tv = vload3(tri_off + pr, tris);
+        const float3 p0 = vload3(vert_off + tv.x, pos), p1 = vload3(vert_off + tv.y, pos), p2 = vload3(vert_off + tv.z, pos);
+        blk->p[0][i] = p0.x; blk->p[1][i] = p0.y; blk->p[2][i] = p0.z;
+        blk->p[3][i] = p1.x; blk->p[4][i] = p1.y; blk->p[5][i] = p1.z;
+        blk->p[6][i] = p2.x; blk->p[7][i] = p2.y; blk->p[8][i] = p2.z;
+        blk->prim[i] = pr;
+    }
+}
+
+/* The slots of the wide node that starts at inner node v (WideBvhT::build_nodes): open the
+   inner child of largest area (first one on ties) until RK_WIDTH; left replaces the parent,
+   right goes after it. Returns the slot count. */
+RK_INLINE int rk_expand(const uint v, __global const uint2* kids, __global const float* rbox,
+                        __global const float* ibox, __global const uint* icnt, const uint n, uint* slot) {
+    int k = 2;
+    slot[0] = kids[v - n].x;
+    slot[1] = kids[v - n].y;
+    while (k < RK_WIDTH) {
+        int best = -1;
+        float best_area = -1.0f;
+        for (int i = 0; i < k; ++i) {
+            if (rk_out_of(icnt, n, slot[i]) == 1u) continue;
+            const uint q = slot[i] - n;
+            rk_box b;
+            b.lo = (float3)(ibox[6 * q], ibox[6 * q + 1], ibox[6 * q + 2]);
+            b.hi = (float3)(ibox[6 * q + 3], ibox[6 * q + 4], ibox[6 * q + 5]);
+            const float a = rk_box_half_area(b);
+            if (best < 0 || a > best_area) {
+                best = i;
+                best_area = a;
+            }
+        }
+        if (best < 0) break;
+        const uint c = slot[best];
+        for (int i = k; i > best + 1; --i) slot[i] = slot[i - 1];
+        slot[best] = kids[c - n].x;
+        slot[best + 1] = kids[c - n].y;
+        ++k;
+    }
+    return k;
+}
+
+/* One item per inner merge node (id n + k, flag index root - id): whether it starts a wide
+   node. The root does; below, the collapse is replayed from the root down v's path. */
+__kernel void rk_tree_roots(__global const uint2* kids, __global const uint* parent, __global const float* rbox,
+                            __global const float* ibox, __global const uint* icnt, const uint n,
+                            __global uint2* wflag) {
+    const uint k = (uint)get_global_id(0);
+    if (k >= n - 1u) return;
+    const uint v = n + k, root = 2u * n - 2u;
+    uint path[RK_MAX_DEPTH + 2];
+    int len = 0, is_root = 0;
+    if (rk_out_of(icnt, n, v) != 1u && rk_out_of(icnt, n, root) != 1u) {
+        for (uint x = v; x != RK_INVALID && len < RK_MAX_DEPTH + 2; x = parent[x]) path[len++] = x;
+        /* path[len - 1] = root ... path[0] = v */
+        int at = len - 1;
+        is_root = at == 0;
+        while (at > 0) {
+            uint slot[RK_WIDTH];
+            const int cnt = rk_expand(path[at], kids, rbox, ibox, icnt, n, slot);
+            int next = -1;
+            for (int d = at - 1; d >= 0 && next < 0; --d)
+                for (int i = 0; i < cnt; ++i)
+                    if (slot[i] == path[d]) next = d;
+            if (next < 0 || rk_out_of(icnt, n, path[next]) == 1u) {
+                is_root = 0;  /* v was opened inside a wide node, or lies inside a leaf */
+                break;
+            }
+            at = next;
+            is_root = at == 0;
+        }
+    }
+    wflag[root - v] = (uint2)(is_root ? 1u : 0u, 0u);
+}
+
+RK_INLINE void rk_slot_clear(__global rk_wnode* w, const int c) {
+    w->planes[0][c] = INFINITY; w->planes[1][c] = -INFINITY;
+    w->planes[2][c] = INFINITY; w->planes[3][c] = -INFINITY;
+    w->planes[4][c] = INFINITY; w->planes[5][c] = -INFINITY;
+    w->index[c] = 0u;
+    w->count[c] = 0u;
+}
+RK_INLINE void rk_slot_set(__global rk_wnode* w, const int c, const rk_box b, const uint index, const uint count) {
+    w->planes[0][c] = b.lo.x; w->planes[1][c] = b.hi.x;
+    w->planes[2][c] = b.lo.y; w->planes[3][c] = b.hi.y;
+    w->planes[4][c] = b.lo.z; w->planes[5][c] = b.hi.z;
+    w->index[c] = index;
+    w->count[c] = count;
+}
+RK_INLINE rk_box rk_node_box(__global const float* rbox, __global const float* ibox, const uint n, const uint x) {
+    if (x < n) return rk_load_box(rbox, x);
+    rk_box b;
+    const uint q = x - n;
+    b.lo = (float3)(ibox[6 * q], ibox[6 * q + 1], ibox[6 * q + 2]);
+    b.hi = (float3)(ibox[6 * q + 3], ibox[6 * q + 4], ibox[6 * q + 5]);
+    return b;
+}
+
+/* Wide nodes: node 0 (the root box alone, inner child 1), then wide node w at 1 + w. One
+   item per flag index; item 0 also writes node 0 and, for a one-leaf tree, node 1. Refit
+   tables of the object's node range [node_offset, node_offset + cap): parents (global), needs
+   (inner children), starts ((global node, object) for nodes without inner children, else
+   RK_INVALID); entries of unused nodes get RK_INVALID / 0. */
+__kernel void rk_tree_wide(__global const uint2* kids, __global const float* rbox, __global const float* ibox,
+                           __global const uint* icnt, __global const uint* first, __global const uint2* wflag,
+                           __global const uint2* wpos, __global const uint2* bpos, const uint n, const uint cap,
+                           const uint node_offset, const uint object, __global rk_wnode* nodes,
+                           __global uint* parents, __global uint* needs, __global uint2* starts,
+                           __global uint* state) {
+    const uint q = (uint)get_global_id(0);
+    if (q >= cap) return;
+    const uint root = n == 1u ? 0u : 2u * n - 2u;
+    const int one_leaf = n == 1u || rk_out_of(icnt, n, root) == 1u;
+    const uint wide = one_leaf ? 1u : wpos[n - 2u].x + wflag[n - 2u].x;
+    if (q == 0u) {
+        state[3] = 1u + wide;
+        __global rk_wnode* w0 = nodes + node_offset;
+        for (int c = 0; c < RK_WIDTH; ++c) rk_slot_clear(w0, c);
+        rk_slot_set(w0, 0, rk_node_box(rbox, ibox, n, root), 1u, 0u);
+        parents[node_offset] = RK_INVALID;
+        needs[node_offset] = 1u;
+        starts[node_offset] = (uint2)(RK_INVALID, 0u);
+        if (one_leaf) {
+            __global rk_wnode* w1 = nodes + node_offset + 1u;
+            for (int c = 0; c < RK_WIDTH; ++c) rk_slot_clear(w1, c);
+            rk_slot_set(w1, 0, rk_node_box(rbox, ibox, n, root), bpos[0].x, (rk_count_of(icnt, n, root) + 3u) >> 2);
+            parents[node_offset + 1u] = node_offset;
+            needs[node_offset + 1u] = 0u;
+            starts[node_offset + 1u] = (uint2)(node_offset + 1u, object);
+        }
+    }
+    /* nodes past the tree: no parent, nothing to wait for, not a start */
+    if (q + 1u >= 1u + wide && !(one_leaf && q == 0u)) {
+        parents[node_offset + q + 1u] = RK_INVALID;
+        needs[node_offset + q + 1u] = 0u;
+        starts[node_offset + q + 1u] = (uint2)(RK_INVALID, 0u);
+    }
+    if (one_leaf || q >= n - 1u || wflag[q].x == 0u) return;
+    const uint v = root - q;
+    const uint me = node_offset + 1u + wpos[q].x;
+    uint slot[RK_WIDTH];
+    const int cnt = rk_expand(v, kids, rbox, ibox, icnt, n, slot);
+    __global rk_wnode* w = nodes + me;
+    uint inner = 0u;
+    for (int c = 0; c < RK_WIDTH; ++c) {
+        if (c >= cnt) {
+            rk_slot_clear(w, c);
+            continue;
+        }
+        const uint x = slot[c];
+        const rk_box b = rk_node_box(rbox, ibox, n, x);
+        if (rk_out_of(icnt, n, x) == 1u) {
+            rk_slot_set(w, c, b, bpos[first[x]].x, (rk_count_of(icnt, n, x) + 3u) >> 2);
+        } else {
+            const uint child = 1u + wpos[root - x].x;
+            rk_slot_set(w, c, b, child, 0u);
+            parents[node_offset + child] = me;
+            ++inner;
+        }
+    }
+    if (q == 0u) parents[me] = node_offset;
+    needs[me] = inner;
+    starts[me] = inner == 0u ? (uint2)(me, object) : (uint2)(RK_INVALID, 0u);
+}
+
+/* SAH cost of an object's wide tree (nodes 1 .. count - 1 of its range; Ct = Ci = 1, a leaf
+   slot weighted by its blocks) over its root's area, for the rebuild policy. One work item
+   per object (`which`: the objects), in a fixed order: the same value on every run. */
+__kernel void rk_tree_cost(__global const rk_wnode* nodes, __global const rk_object* objects,
+                           __global const uint* which, __global const uint* counts, __global float* cost,
+                           const uint m) {
+    const uint d = (uint)get_global_id(0);
+    if (d >= m) return;
+    const rk_object ob = objects[which[d]];
+    const uint count = counts[d];
+    if (count < 2u) {
+        cost[d] = 0.0f;
+        return;
+    }
+    rk_box r;
+    r.lo = (float3)(nodes[ob.node_offset].planes[0][0], nodes[ob.node_offset].planes[2][0], nodes[ob.node_offset].planes[4][0]);
+    r.hi = (float3)(nodes[ob.node_offset].planes[1][0], nodes[ob.node_offset].planes[3][0], nodes[ob.node_offset].planes[5][0]);
+    double sum = 0.0;
+    for (uint i = 1; i < count; ++i) {
+        __global const rk_wnode* w = nodes + ob.node_offset + i;
+        for (int c = 0; c < RK_WIDTH; ++c) {
+            if (w->count[c] == 0u && w->index[c] == 0u) continue;
+            rk_box b;
+            b.lo = (float3)(w->planes[0][c], w->planes[2][c], w->planes[4][c]);
+            b.hi = (float3)(w->planes[1][c], w->planes[3][c], w->planes[5][c]);
+            sum += (double)rk_box_half_area(b) * (double)(w->count[c] == 0u ? 1u : w->count[c]);
+        }
+    }
+    const float root = rk_box_half_area(r);
+    cost[d] = root > 0.0f ? (float)(sum / (double)root) : 0.0f;
+}
+)CLC";
+
+}  // namespace raykit::kernels
