@@ -30,6 +30,14 @@
 //                         iteration with a -D option (so neither raykit's nor PoCL's cache helps),
 //                         plus the first launch (PoCL compiles the work-group function then)
 //   cl_program/cached     build_program() of an already built program (the in-process cache)
+//   cl_build/<mesh>/device   an object's tree built on the device (cl/device_build.hpp: PLOC,
+//                         8-wide nodes and blocks written into device arrays, refit tables
+//                         included) from vertices already there; mesh torus2k (a character's
+//                         size), bunny, torus100k; counter rounds (PLOC rounds)
+//   cl_build/<mesh>/cpu_twin/threads:2   the same tree on the CPU (cpu_twin_build: PlocBuilder
+//                         without post-pass, BlockBvh8::build, device_tree) on 2 threads
+//   cl_build/<mesh>/cpu_sah/threads:2    what the CPU frame rebuilds with (Scene::rebuild_object:
+//                         binned SAH, BlockBvh8::build)
 //   cl_frame/torus100k/device   one frame of a 100k-triangle dynamic mesh: wave vertex hook,
 //                         one-pass refit, top level, 1024x1024 camera rays (1 Mray) traced closest;
 //                         counters vertex_ms, refit_ms, tlas_ms, trace_ms
@@ -202,6 +210,54 @@ void BM_Refit(benchmark::State& state, RefitCase which) {
     state.counters["nodes"] = double(nodes);
     state.counters["levels"] = double(r.ds->refit_plan().levels());
     state.counters["ms"] = benchmark::Counter(1e-3, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
+// ---------------------------------------------------------------- device builds
+
+enum class BuildCase { device, cpu_twin, cpu_sah };
+
+const raykit::Mesh* build_mesh(benchmark::State& state, const std::string& name) {
+    static const raykit::Mesh small = raykit::make_bumpy_torus(2400);
+    if (name == "torus2k") return &small;
+    const rkbench::Scene* s = rkbench::scene_or_skip(state, name);
+    return s ? &s->mesh : nullptr;
+}
+
+void BM_Build(benchmark::State& state, std::string name, BuildCase which) {
+    const raykit::Mesh* mesh = build_mesh(state, name);
+    if (!mesh) return;
+    rcl::Device* dev = device_or_skip(state);
+    if (!dev) return;
+    const rcl::DeviceBuildConfig cfg;
+    if (which == BuildCase::cpu_twin) {
+        for (auto _ : state) benchmark::DoNotOptimize(rcl::cpu_twin_build(*mesh, cfg, 2));
+    } else if (which == BuildCase::cpu_sah) {
+        for (auto _ : state) {
+            const raykit::Bvh bvh = raykit::build_bvh<raykit::BinnedSahBuilder>(*mesh, raykit::BlockBvh8::sah_config(2));
+            benchmark::DoNotOptimize(raykit::BlockBvh8::build(*mesh, bvh, 2));
+        }
+    } else {
+        rcl::DeviceBuilder builder(*dev, cfg);
+        const std::size_t n = mesh->triangles.size();
+        rcl::Buffer<raykit::Triangle> tris(*dev, mesh->triangles);
+        rcl::Buffer<float> pos(*dev, rcl::float_span(mesh->positions));
+        rcl::Buffer<rcl::DeviceNode> nodes(*dev, rcl::DeviceBuilder::node_capacity(n));
+        rcl::Buffer<raykit::TriangleBlock4> blocks(*dev, rcl::DeviceBuilder::block_capacity(n));
+        rcl::Buffer<std::uint32_t> parents(*dev, nodes.size()), needs(*dev, nodes.size());
+        rcl::Buffer<cl_uint2> starts(*dev, nodes.size());
+        rcl::ObjectRecord rec{};
+        rec.triangle_count = static_cast<std::uint32_t>(n);
+        const rcl::DeviceBuildTarget out{&nodes, &blocks, {&parents, &needs, &starts}};
+        rcl::DeviceBuildResult r = builder.build(tris, pos, rec, 0, out);  // warm-up: first launches compile
+        dev->finish();
+        for (auto _ : state) {
+            r = builder.build(tris, pos, rec, 0, out);
+            dev->finish();
+        }
+        state.counters["rounds"] = double(r.rounds);
+        state.counters["launches"] = double(builder.launches()) / double(state.iterations() + 1);
+    }
+    state.SetItemsProcessed(std::int64_t(state.iterations()) * std::int64_t(mesh->triangles.size()));
 }
 
 // ---------------------------------------------------------------- program build
@@ -408,6 +464,13 @@ const bool registered = [] {
             ->UseRealTime()
             ->MinTime(0.3)
             ->Unit(benchmark::kMillisecond);
+    for (const char* mesh : {"torus2k", "bunny", "torus100k"})
+        for (const auto& [name, which] : {std::pair{"device", BuildCase::device}, std::pair{"cpu_twin/threads:2", BuildCase::cpu_twin},
+                                          std::pair{"cpu_sah/threads:2", BuildCase::cpu_sah}})
+            benchmark::RegisterBenchmark((std::string("cl_build/") + mesh + "/" + name).c_str(), BM_Build, std::string(mesh), which)
+                ->UseRealTime()
+                ->MinTime(0.5)
+                ->Unit(benchmark::kMillisecond);
     benchmark::RegisterBenchmark("cl_program/first", BM_ProgramFirst)->Iterations(3)->UseRealTime()->Unit(benchmark::kMillisecond);
     benchmark::RegisterBenchmark("cl_program/cached", BM_ProgramCached)->UseRealTime()->Unit(benchmark::kMicrosecond);
     benchmark::RegisterBenchmark("cl_frame/torus100k/device", BM_FrameDevice)->UseRealTime()->MinTime(1.0)->Unit(benchmark::kMillisecond);

@@ -61,7 +61,7 @@ inline BlockBvh8 cpu_twin_build(const MeshView& mesh, const DeviceBuildConfig& c
 
 /// Program part with the build kernels (needs refit_part() before it, for the box helpers).
 inline SourcePart build_part() {
-    return {"raykit/kernels/build.hpp", std::string("#define RK_BUILD_GROUP 256\n#define RK_SORT_LOCAL 512\n"
+    return {"raykit/kernels/build.hpp", std::string("#define RK_BUILD_GROUP 256\n#define RK_RADIX_BLOCK 512\n"
                                                     "#define RK_SCAN_GROUP 64\n#define RK_SCAN_BLOCK 1024\n") +
                                             kernels::kBuild};
 }
@@ -105,12 +105,13 @@ public:
         if (cfg.radius < 1 || cfg.radius > 1024) throw std::invalid_argument("raykit::cl::DeviceBuilder: radius must be in [1, 1024]");
         check_leaf_block(cfg.leaf.leaf_block, "raykit::cl::DeviceBuilder");
         if (cfg.leaf.leaf_block != 4) throw std::invalid_argument("raykit::cl::DeviceBuilder: leaves are blocks of 4 (leaf_block 4)");
-        const char* names[] = {"rk_build_refs", "rk_build_bounds", "rk_build_morton", "rk_sort_local", "rk_sort_global",
-                               "rk_ploc_init",  "rk_ploc_nn",      "rk_ploc_flags",   "rk_scan_blocks", "rk_scan_sums",
-                               "rk_scan_add",   "rk_ploc_merge",   "rk_ploc_advance", "rk_tree_parents", "rk_tree_up",
-                               "rk_tree_slots", "rk_tree_blocks",  "rk_tree_roots",   "rk_tree_wide"};
+        const char* names[] = {"rk_build_refs", "rk_build_bounds", "rk_build_morton", "rk_radix_count", "rk_radix_scatter",
+                               "rk_ploc_init",  "rk_ploc_nn",      "rk_ploc_count",   "rk_ploc_sums",   "rk_scan_blocks",
+                               "rk_scan_sums",  "rk_scan_add",     "rk_ploc_merge", "rk_tree_parents", "rk_tree_up",
+                               "rk_tree_top", "rk_tree_down", "rk_tree_slots", "rk_tree_blocks",  "rk_tree_roots_init", "rk_tree_roots", "rk_tree_wide"};
         for (std::size_t i = 0; i < kKernels; ++i) k_[i] = p.kernel(names[i]);
         state_ = Buffer<std::uint32_t>(dev, 8);
+        level_counts_ = Buffer<std::uint32_t>(dev, RAYKIT_BVH_MAX_DEPTH + 2);
         fstate_ = Buffer<float>(dev, 8);
         total_ = Buffer<cl_uint2>(dev, 1);
     }
@@ -138,20 +139,22 @@ public:
         }
         if (n >= 0x7FFFFFFFu) throw std::length_error("raykit::cl::DeviceBuilder: too many triangles");
         reserve(n);
-        const std::uint32_t padded = std::max<std::uint32_t>(std::bit_ceil(n), kSortLocal);
         go(k(Refs), n, triangles, positions, rec.triangle_offset, rec.vertex_offset, n, rbox_, cen_);
         set_args(k(Bounds), cen_, n, fstate_, state_);
         launch_n(k(Bounds), kBoundsGroup, kBoundsGroup);
-        go(k(Morton), padded, cen_, fstate_, n, padded, keys_, ids_);
-        sort(padded);
-        go(k(Init), n, ids_, rbox_, cen_, fstate_, n, cl_[0], cnode_[0]);
+        go(k(Morton), n, cen_, fstate_, n, keys_[0], ids_[0]);
+        sort(n);
+        go(k(Init), n, ids_[0], rbox_, cen_, fstate_, n, cl_[0], cnode_[0]);
         std::uint32_t st[8] = {};
         int cur = 0;
         if (n > 1) {
-            for (;;) {
-                for (int r = 0; r < kRoundsPerRead; ++r, cur ^= 1) round(n, cur);
+            // one round per launch set, sized by the cluster count read after the previous one
+            bases_.assign(1, 0u);  // (n == 1 launches no rk_tree_down)
+            for (std::uint32_t m = n; m > 1; cur ^= 1) {
+                round(m, n, cur);
                 state_.read(*dev_, std::span<std::uint32_t>(st, 8));
-                if (st[0] <= 1) break;
+                m = st[0];
+                bases_.push_back(st[1]);
                 if (st[2] > kMaxRounds) {
                     res.rounds = st[2];
                     return res;
@@ -169,13 +172,23 @@ public:
             const std::uint32_t none = kInvalidIndex;
             parent_.write(*dev_, std::span<const std::uint32_t>(&none, 1));
         }
-        go(k(Slots), n, kids_, parent_, icnt_, n, prims_, leaf_of_, bflag_, first_);
+        go(k(Top), 1, icnt_, n, first_, leaf_);
+        for (std::size_t r = bases_.size(); r-- > 1;)
+            if (n > 1) go(k(Down), bases_[r] - bases_[r - 1], kids_, icnt_, n, bases_[r - 1], bases_[r], first_, leaf_);
+        go(k(Slots), n, first_, leaf_, n, prims_, leaf_of_, bflag_);
         scan(bflag_, bpos_, n);
         const std::uint32_t cap = static_cast<std::uint32_t>(node_capacity(n) - 1);
         go(k(Blocks), n, prims_, leaf_of_, bflag_, bpos_, n, triangles, positions, rec.triangle_offset, rec.vertex_offset,
            *out.blocks, rec.block_offset, state_);
         if (n > 1) {
-            go(k(Roots), n - 1, kids_, parent_, rbox_, ibox_, icnt_, n, wflag_);
+            go(k(RootsInit), n - 1, icnt_, n, wflag_, list_[0], level_counts_);
+            std::uint32_t counts[RAYKIT_BVH_MAX_DEPTH + 2] = {};
+            for (std::uint32_t level = 0; level + 1 < std::size(counts); ++level) {  // a wide level is a binary one at least
+                level_counts_.read(*dev_, std::span<std::uint32_t>(counts + level, 1), level);
+                if (counts[level] == 0) break;
+                go(k(Roots), counts[level], kids_, rbox_, ibox_, icnt_, n, list_[level & 1], list_[(level & 1) ^ 1],
+                   level_counts_, level, wflag_);
+            }
             scan(wflag_, wpos_, n - 1);
         }
         go(k(Wide), cap, kids_, rbox_, ibox_, icnt_, first_, wflag_, wpos_, bpos_, n, cap, rec.node_offset, object,
@@ -189,12 +202,11 @@ public:
 
 private:
     enum Kernel {
-        Refs, Bounds, Morton, SortLocal, SortGlobal, Init, Nn, Flags, ScanBlocks, ScanSums, ScanAdd, Merge, Advance,
-        Parents, Up, Slots, Blocks, Roots, Wide, kKernels
+        Refs, Bounds, Morton, RadixCount, RadixScatter, Init, Nn, Count, Sums, ScanBlocks, ScanSums, ScanAdd, Merge,
+        Parents, Up, Top, Down, Slots, Blocks, RootsInit, Roots, Wide, kKernels
     };
-    static constexpr std::size_t kBoundsGroup = 256, kSortLocal = 512, kScanGroup = 64, kScanBlock = 1024;
-    static constexpr int kRoundsPerRead = 2;
-    static constexpr std::size_t kGroup = 64;
+    static constexpr std::size_t kBoundsGroup = 256, kRadixBlock = 512, kScanGroup = 64, kScanBlock = 1024;
+    static constexpr std::size_t kGroup = 256;
 
     ::cl::Kernel& k(Kernel i) noexcept { return k_[i]; }
     void launch_n(::cl::Kernel& kk, std::size_t global, std::size_t local) {
@@ -209,19 +221,22 @@ private:
     void reserve(std::uint32_t n) {
         if (n <= cap_) return;
         Device& d = *dev_;
-        const std::size_t m = n, inner = n > 1 ? n - 1 : 1, padded = std::max<std::size_t>(std::bit_ceil(m), kSortLocal);
+        const std::size_t m = n, inner = n > 1 ? n - 1 : 1, digits = 256 * radix_blocks(n);
         rbox_.allocate(d, 6 * m);
         cen_.allocate(d, 3 * m);
-        keys_.allocate(d, padded);
-        ids_.allocate(d, padded);
+        for (int i = 0; i < 2; ++i) {
+            keys_[i].allocate(d, m);
+            ids_[i].allocate(d, m);
+        }
+        digits_.allocate(d, digits);
+        digit_pos_.allocate(d, digits);
         for (int i = 0; i < 2; ++i) {
             cl_[i].allocate(d, 6 * m);
             cnode_[i].allocate(d, m);
         }
         nn_.allocate(d, m);
-        flags_.allocate(d, m);
         pos_.allocate(d, m);
-        sums_.allocate(d, (m + kScanBlock - 1) / kScanBlock);
+        sums_.allocate(d, (std::max(m, digits) + kScanBlock - 1) / kScanBlock);
         kids_.allocate(d, inner);
         parent_.allocate(d, 2 * m);
         counters_ = Buffer<std::uint32_t>(d, std::vector<std::uint32_t>(inner, 0u));
@@ -232,22 +247,25 @@ private:
         bflag_.allocate(d, m);
         bpos_.allocate(d, m);
         first_.allocate(d, 2 * m);
+        leaf_.allocate(d, 2 * m);
         wflag_.allocate(d, inner);
+        list_[0].allocate(d, inner);
+        list_[1].allocate(d, inner);
         wpos_.allocate(d, inner);
         cap_ = n;
     }
 
-    /// Bitonic sort of (key, index) over `padded` entries (a power of two, at least kSortLocal).
-    void sort(std::uint32_t padded) {
-        set_args(k(SortLocal), keys_, ids_, std::uint32_t(0));
-        launch_n(k(SortLocal), padded / 2, kSortLocal / 2);
-        for (std::uint32_t kk = 2 * kSortLocal; kk <= padded; kk <<= 1) {
-            for (std::uint32_t j = kk / 2; j >= kSortLocal; j >>= 1) {
-                set_args(k(SortGlobal), keys_, ids_, kk, j);
-                launch_n(k(SortGlobal), padded / 2, kGroup);
-            }
-            set_args(k(SortLocal), keys_, ids_, kk);
-            launch_n(k(SortLocal), padded / 2, kSortLocal / 2);
+    static std::uint32_t radix_blocks(std::uint32_t n) { return static_cast<std::uint32_t>((n + kRadixBlock - 1) / kRadixBlock); }
+
+    /// Radix sort of (key, index), 8 passes of 8 bits (63-bit keys); ends in keys_[0], ids_[0].
+    void sort(std::uint32_t n) {
+        const std::uint32_t blocks = radix_blocks(n);
+        for (std::uint32_t pass = 0; pass < 8; ++pass) {
+            const int from = int(pass & 1u), to = from ^ 1;
+            const std::uint32_t shift = 8 * pass;
+            go(k(RadixCount), blocks, keys_[from], n, shift, digits_, blocks);
+            scan(digits_, digit_pos_, 256 * blocks);
+            go(k(RadixScatter), blocks, keys_[from], ids_[from], keys_[to], ids_[to], n, shift, digit_pos_, blocks);
         }
     }
 
@@ -261,14 +279,15 @@ private:
         go(k(ScanAdd), count, out, sums_, count);
     }
 
-    /// One PLOC round from cluster set `cur` into the other.
-    void round(std::uint32_t n, int cur) {
-        go(k(Nn), n, cl_[cur], n, state_, std::uint32_t(cfg_.radius), nn_);
-        go(k(Flags), n, nn_, state_, n, flags_);
-        scan(flags_, pos_, n);
-        go(k(Merge), n, cl_[cur], cnode_[cur], cl_[cur ^ 1], cnode_[cur ^ 1], n, nn_, pos_, state_, n, kids_);
-        set_args(k(Advance), state_, total_);
-        launch_n(k(Advance), 1, 1);
+    /// One PLOC round over m of n clusters (the arrays' stride) from set `cur` into the other.
+    void round(std::uint32_t m, std::uint32_t n, int cur) {
+        const std::uint32_t blocks = static_cast<std::uint32_t>((m + kScanBlock - 1) / kScanBlock);
+        go(k(Nn), m, cl_[cur], n, m, std::uint32_t(cfg_.radius), nn_);
+        set_args(k(Count), nn_, m, pos_, sums_);
+        launch_n(k(Count), std::size_t(blocks) * kScanGroup, kScanGroup);
+        set_args(k(Sums), sums_, blocks, state_);
+        launch_n(k(Sums), 1, 1);
+        go(k(Merge), m, cl_[cur], cnode_[cur], cl_[cur ^ 1], cnode_[cur ^ 1], n, nn_, pos_, sums_, state_, n, m, kids_);
     }
 
     Device* dev_ = nullptr;
@@ -276,13 +295,14 @@ private:
     ::cl::Kernel k_[kKernels];
     std::size_t launches_ = 0;
     std::uint32_t cap_ = 0;
-    Buffer<std::uint32_t> state_;
+    Buffer<std::uint32_t> state_, level_counts_, list_[2];
     Buffer<float> fstate_;
     Buffer<cl_uint2> total_;
     Buffer<float> rbox_, cen_, cl_[2], ibox_;
-    Buffer<cl_ulong> keys_;
-    Buffer<std::uint32_t> ids_, cnode_[2], nn_, parent_, counters_, icnt_, prims_, first_;
-    Buffer<cl_uint2> flags_, pos_, sums_, kids_, leaf_of_, bflag_, bpos_, wflag_, wpos_;
+    Buffer<cl_ulong> keys_[2];
+    Buffer<std::uint32_t> ids_[2], cnode_[2], nn_, parent_, counters_, icnt_, prims_, first_;
+    std::vector<std::uint32_t> bases_;  ///< merge-tree size after each PLOC round (0 first)
+    Buffer<cl_uint2> leaf_, digits_, digit_pos_, pos_, sums_, kids_, leaf_of_, bflag_, bpos_, wflag_, wpos_;
 };
 
 }  // namespace raykit::cl

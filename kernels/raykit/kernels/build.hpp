@@ -5,23 +5,25 @@
 // Stages (one work item per primitive, cluster or node unless said):
 //   rk_build_refs      triangle boxes (MeshView::bounds) and centres (AABB::center; NaN when empty)
 //   rk_build_bounds    one work-group: bounds of the finite centres (sanitize_centers)
-//   rk_build_morton    63-bit Morton keys (MortonQuantizer) and indices, padded to a power of two
-//   rk_sort_local / rk_sort_global   bitonic sort by (key, index): the CPU's stable radix sort
-//                      of keys over indices 0..n-1 gives the same order
+//   rk_build_morton    63-bit Morton keys (MortonQuantizer) and indices
+//   rk_radix_count / rk_radix_scatter   LSD radix sort, 8 passes of 8 bits, stable: the CPU's
+//                      order (its radix sort of the keys over indices 0..n-1)
 //   rk_ploc_init       clusters in key order, working boxes (working_box)
 //   per round: rk_ploc_nn (nearest of R on each side, fused_proof_half_area, first smallest),
-//              rk_ploc_flags (mutual pairs), rk_scan_* (exclusive sums of keeps and merges),
-//              rk_ploc_merge (new node i takes the lower place, numbered in array order),
-//              rk_ploc_advance (cluster and node counts in `state`)
+//              rk_ploc_count, rk_ploc_sums (mutual pairs; exclusive sums of keeps and merges;
+//              cluster and node counts in `state`), rk_ploc_merge (a new node takes the lower
+//              place, numbered in array order)
 //   rk_tree_parents, rk_tree_up   real boxes, counts and the leaf merge (node_cost) bottom-up;
 //                      the last of two children to arrive computes the parent (atomic counter)
-//   rk_tree_slots      each primitive walks up: its prim_ids slot (left-to-right order), its
-//                      leaf's first slot and size; block starts flagged, then scanned
+//   rk_tree_top, rk_tree_down   top-down, one launch per PLOC round (last to first): first
+//                      prim_ids slot (left-to-right order) of every node, and its leaf
+//   rk_tree_slots      per primitive: its slot, its leaf's first slot and size, block starts
+//                      flagged (then scanned)
 //   rk_tree_blocks     the leaves' TriangleBlock4s (lanes past a leaf's end repeat its last)
-//   rk_tree_roots      whether an inner node starts a wide node: the collapse of wide.hpp
-//                      (open the child of largest area until 8) replayed from the root down
-//                      the node's path; wide nodes are numbered in descending merge id, so a
-//                      child comes after its parent
+//   rk_tree_roots      which inner nodes start a wide node: the collapse of wide.hpp (open the
+//                      child of largest area until 8), one launch per wide level from the root;
+//                      wide nodes are numbered in descending merge id (a scan of the flags), so
+//                      a child comes after its parent
 //   rk_tree_wide       the wide nodes (device_tree's form: node 0 the root box alone) and the
 //                      refit tables of the new topology (parents, needs, one-pass starts)
 //   rk_tree_cost       the SAH cost of objects' wide trees, for the rebuild policy
@@ -59,7 +61,8 @@ RK_INLINE void rk_store_box(__global float* b, const uint i, const rk_box r) {
 RK_INLINE int rk_finite3(const float3 p) { return all(isfinite(p)); }
 
 /* state: [0] clusters, [1] merge-tree nodes, [2] rounds, [3] wide nodes, [4] blocks,
-   [5] height of the root, [6] the root's id; fstate: [0..5] centroid bounds */
+   [5] height of the root, [7] merge-tree nodes before the round; fstate: [0..5] centroid
+   bounds */
 
 __kernel void rk_build_refs(__global const uint* tris, __global const float* pos, const uint tri_off,
                             const uint vert_off, const uint n, __global float* rbox, __global float* cen) {
@@ -120,14 +123,9 @@ RK_INLINE ulong rk_spread21(ulong x) {
 }
 
 __kernel void rk_build_morton(__global const float* cen, __global const float* fstate, const uint n,
-                              const uint padded, __global ulong* keys, __global uint* ids) {
+                              __global ulong* keys, __global uint* ids) {
     const uint i = (uint)get_global_id(0);
-    if (i >= padded) return;
-    if (i >= n) {
-        keys[i] = 0xFFFFFFFFFFFFFFFFul;
-        ids[i] = RK_INVALID;
-        return;
-    }
+    if (i >= n) return;
     const float3 lo = vload3(0, fstate), e = vload3(1, fstate) - lo;
     const float m = e.x < e.y ? (e.y < e.z ? e.z : e.y) : (e.x < e.z ? e.z : e.x);
     const float scale = m > 0.0f && m < INFINITY ? 2097151.0f / m : 0.0f;
@@ -143,52 +141,35 @@ __kernel void rk_build_morton(__global const float* cen, __global const float* f
     ids[i] = i;
 }
 
-RK_INLINE int rk_key_less(const ulong ka, const uint ia, const ulong kb, const uint ib) {
-    return ka < kb || (ka == kb && ia < ib);
+/* LSD radix sort of (key, index), 8 bits a pass: stable, so from indices in order it gives the
+   order of the CPU's radix sort (util/radix_sort.hpp). One work item per block of
+   RK_RADIX_BLOCK entries counts its digits, then scatters its entries in order; counts are
+   stored digit-major (counts[digit * blocks + block]), so their exclusive sums are the first
+   slot of each (digit, block). Private counters: fine on CPU devices; a GPU would want a
+   work-group per block and local-memory ranks. */
+__kernel void rk_radix_count(__global const ulong* keys, const uint n, const uint shift, __global uint2* counts,
+                             const uint blocks) {
+    const uint b = (uint)get_global_id(0);
+    if (b >= blocks) return;
+    uint c[256];
+    for (int d = 0; d < 256; ++d) c[d] = 0u;
+    const uint first = b * RK_RADIX_BLOCK, last = min(n, first + RK_RADIX_BLOCK);
+    for (uint i = first; i < last; ++i) ++c[(uint)(keys[i] >> shift) & 255u];
+    for (int d = 0; d < 256; ++d) counts[(uint)d * blocks + b] = (uint2)(c[d], 0u);
 }
-
-/* Bitonic steps with stride < RK_SORT_LOCAL inside one block of RK_SORT_LOCAL entries
-   (local size RK_SORT_LOCAL / 2). k0 = 0: the whole sort of each block (k = 2 ..
-   RK_SORT_LOCAL); else the steps j = RK_SORT_LOCAL / 2 .. 1 of merge size k0. */
-__kernel void rk_sort_local(__global ulong* keys, __global uint* ids, const uint k0) {
-    __local ulong lk[RK_SORT_LOCAL];
-    __local uint li[RK_SORT_LOCAL];
-    const uint l = (uint)get_local_id(0), base = (uint)get_group_id(0) * RK_SORT_LOCAL;
-    lk[l] = keys[base + l];
-    li[l] = ids[base + l];
-    lk[l + RK_SORT_LOCAL / 2] = keys[base + l + RK_SORT_LOCAL / 2];
-    li[l + RK_SORT_LOCAL / 2] = ids[base + l + RK_SORT_LOCAL / 2];
-    barrier(CLK_LOCAL_MEM_FENCE);
-    const uint kfirst = k0 == 0u ? 2u : k0, klast = k0 == 0u ? RK_SORT_LOCAL : k0;
-    for (uint k = kfirst; k <= klast; k <<= 1) {
-        for (uint j = (k0 == 0u ? k : RK_SORT_LOCAL) >> 1; j > 0u; j >>= 1) {
-            const uint a = 2u * l - (l & (j - 1u)), b = a + j;  /* a has bit j clear */
-            const int up = ((base + a) & k) == 0u;
-            const ulong ka = lk[a], kb = lk[b];
-            const uint ia = li[a], ib = li[b];
-            if (rk_key_less(kb, ib, ka, ia) == up) {
-                lk[a] = kb; li[a] = ib;
-                lk[b] = ka; li[b] = ia;
-            }
-            barrier(CLK_LOCAL_MEM_FENCE);
-        }
-    }
-    keys[base + l] = lk[l];
-    ids[base + l] = li[l];
-    keys[base + l + RK_SORT_LOCAL / 2] = lk[l + RK_SORT_LOCAL / 2];
-    ids[base + l + RK_SORT_LOCAL / 2] = li[l + RK_SORT_LOCAL / 2];
-}
-
-/* One bitonic step of merge size k and stride j >= RK_SORT_LOCAL; one item per pair. */
-__kernel void rk_sort_global(__global ulong* keys, __global uint* ids, const uint k, const uint j) {
-    const uint t = (uint)get_global_id(0);
-    const uint a = 2u * t - (t & (j - 1u)), b = a + j;
-    const int up = (a & k) == 0u;
-    const ulong ka = keys[a], kb = keys[b];
-    const uint ia = ids[a], ib = ids[b];
-    if (rk_key_less(kb, ib, ka, ia) == up) {
-        keys[a] = kb; ids[a] = ib;
-        keys[b] = ka; ids[b] = ia;
+__kernel void rk_radix_scatter(__global const ulong* keys, __global const uint* ids, __global ulong* keys_out,
+                               __global uint* ids_out, const uint n, const uint shift,
+                               __global const uint2* offsets, const uint blocks) {
+    const uint b = (uint)get_global_id(0);
+    if (b >= blocks) return;
+    uint o[256];
+    for (int d = 0; d < 256; ++d) o[d] = offsets[(uint)d * blocks + b].x;
+    const uint first = b * RK_RADIX_BLOCK, last = min(n, first + RK_RADIX_BLOCK);
+    for (uint i = first; i < last; ++i) {
+        const ulong k = keys[i];
+        const uint j = o[(uint)(k >> shift) & 255u]++;
+        keys_out[j] = k;
+        ids_out[j] = ids[i];
     }
 }
 
@@ -217,9 +198,8 @@ __kernel void rk_ploc_init(__global const uint* ids, __global const float* rbox,
     cnode[s] = p;
 }
 
-__kernel void rk_ploc_nn(__global const float* cl, const uint cap, __global const uint* state, const uint R,
-                         __global uint* nn) {
-    const uint i = (uint)get_global_id(0), m = state[0];
+__kernel void rk_ploc_nn(__global const float* cl, const uint cap, const uint m, const uint R, __global uint* nn) {
+    const uint i = (uint)get_global_id(0);
     if (i >= m || m < 2u) return;
     const rk_box a = rk_cluster_box(cl, cap, i);
     const uint b = i >= R ? i - R : 0u, e = min(m, i + R + 1u);
@@ -244,18 +224,54 @@ __kernel void rk_ploc_nn(__global const float* cl, const uint cap, __global cons
     nn[i] = best;
 }
 
-/* (keep, merge) of cluster i: a mutual pair i < j merges into i's place, j's is dropped. */
-__kernel void rk_ploc_flags(__global const uint* nn, __global const uint* state, const uint cap, __global uint2* flags) {
-    const uint i = (uint)get_global_id(0);
-    if (i >= cap) return;
-    const uint m = state[0];
-    if (i >= m || m < 2u) {
-        flags[i] = (uint2)(0u, 0u);
-        return;
+/* The round's exclusive sums of (keep, merge) per cluster: a mutual pair i < j merges into
+   i's place, j's is dropped. rk_scan_blocks with the flags made from nn on the fly; pos gets
+   the sums within each block of RK_SCAN_BLOCK, rk_ploc_sums the blocks' and the new counts. */
+__kernel void rk_ploc_count(__global const uint* nn, const uint m, __global uint2* pos, __global uint2* sums) {
+    __local uint2 part[RK_SCAN_GROUP];
+    const uint l = (uint)get_local_id(0);
+    const uint per = RK_SCAN_BLOCK / RK_SCAN_GROUP;
+    const uint first = (uint)get_group_id(0) * RK_SCAN_BLOCK + l * per;
+    uint2 s = (uint2)(0u, 0u);
+    for (uint i = first; i < first + per && i < m; ++i) {
+        const uint j = nn[i];
+        const int mutual = nn[j] == i;
+        s += (uint2)((mutual && j < i) ? 0u : 1u, (mutual && i < j) ? 1u : 0u);
     }
-    const uint j = nn[i];
-    const int mutual = nn[j] == i;
-    flags[i] = (uint2)((mutual && j < i) ? 0u : 1u, (mutual && i < j) ? 1u : 0u);
+    part[l] = s;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (l == 0u) {
+        uint2 acc = (uint2)(0u, 0u);
+        for (uint k = 0; k < RK_SCAN_GROUP; ++k) {
+            const uint2 v = part[k];
+            part[k] = acc;
+            acc += v;
+        }
+        sums[get_group_id(0)] = acc;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    uint2 acc = part[l];
+    for (uint i = first; i < first + per && i < m; ++i) {
+        pos[i] = acc;
+        const uint j = nn[i];
+        const int mutual = nn[j] == i;
+        acc += (uint2)((mutual && j < i) ? 0u : 1u, (mutual && i < j) ? 1u : 0u);
+    }
+}
+/* One work item: block sums made exclusive; state: [7] the merge-tree size before the round
+   (the new nodes' base), [0] the new cluster count, [1] the new size, [2] rounds. */
+__kernel void rk_ploc_sums(__global uint2* sums, const uint blocks, __global uint* state) {
+    if (get_global_id(0) != 0) return;
+    uint2 acc = (uint2)(0u, 0u);
+    for (uint k = 0; k < blocks; ++k) {
+        const uint2 v = sums[k];
+        sums[k] = acc;
+        acc += v;
+    }
+    state[7] = state[1];
+    state[0] = acc.x;
+    state[1] += acc.y;
+    state[2] += 1u;
 }
 
 /* Exclusive sums of uint2 over `count` entries: blocks of RK_SCAN_BLOCK entries (one
@@ -304,32 +320,24 @@ __kernel void rk_scan_add(__global uint2* out, __global const uint2* sums, const
 
 __kernel void rk_ploc_merge(__global const float* cl, __global const uint* cnode, __global float* next,
                             __global uint* nnode, const uint cap, __global const uint* nn,
-                            __global const uint2* pos, __global const uint* state, const uint n,
-                            __global uint2* kids) {
-    const uint i = (uint)get_global_id(0), m = state[0];
+                            __global const uint2* pos, __global const uint2* sums, __global const uint* state,
+                            const uint n, const uint m, __global uint2* kids) {
+    const uint i = (uint)get_global_id(0);
     if (i >= m || m < 2u) return;
     const uint j = nn[i];
     const int mutual = nn[j] == i;
     if (mutual && j < i) return;
-    const uint2 p = pos[i];
+    const uint2 p = pos[i] + sums[i / RK_SCAN_BLOCK];
     rk_box b = rk_cluster_box(cl, cap, i);
     uint id = cnode[i];
     if (mutual) {
-        const uint k = state[1] + p.y;
+        const uint k = state[7] + p.y;
         kids[k] = (uint2)(cnode[i], cnode[j]);
         rk_box_grow(&b, rk_cluster_box(cl, cap, j));
         id = n + k;
     }
     rk_cluster_set(next, cap, p.x, b);
     nnode[p.x] = id;
-}
-
-/* After a round: the new cluster count, merge-tree size and round count (total: the scan's). */
-__kernel void rk_ploc_advance(__global uint* state, __global const uint2* total) {
-    if (get_global_id(0) != 0 || state[0] < 2u) return;
-    state[0] = total[0].x;
-    state[1] += total[0].y;
-    state[2] += 1u;
 }
 
 /* ---------------------------------------------------------------- back end */
@@ -409,39 +417,46 @@ __kernel void rk_tree_up(__global const uint2* kids, __global const uint* parent
 RK_INLINE uint rk_count_of(__global const uint* icnt, const uint n, const uint x) { return x < n ? 1u : icnt[4 * (x - n)]; }
 RK_INLINE uint rk_out_of(__global const uint* icnt, const uint n, const uint x) { return x < n ? 1u : icnt[4 * (x - n) + 1]; }
 
-/* One item per primitive: its prim_ids slot (left-to-right order of the merge tree), the
-   first slot and size of the leaf it ends in, and whether it starts a block.
-   The leaf is p's highest ancestor-or-self of output size 1 (the back end's top-down emission
-   stops at the first such node). first[x]: first slot of node x. */
-__kernel void rk_tree_slots(__global const uint2* kids, __global const uint* parent, __global const uint* icnt,
-                            const uint n, __global uint* prims, __global uint2* leaf_of, __global uint2* bflag,
-                            __global uint* first) {
+/* Top-down, one launch per PLOC round from the last to the first (a node's parent is of a
+   later round): each node of the round (merge-tree indices [lo, hi)) gives its children their
+   first prim_ids slot (left-to-right order) and the leaf they lie in, as (first slot, size),
+   or RK_INVALID above the leaves: a leaf is the first node of output size 1 on the way down
+   (the back end's top-down emission). rk_tree_top seeds the root. */
+__kernel void rk_tree_top(__global const uint* icnt, const uint n, __global uint* first, __global uint2* leaf) {
+    if (get_global_id(0) != 0) return;
+    const uint root = n == 1u ? 0u : 2u * n - 2u;
+    first[root] = 0u;
+    leaf[root] = rk_out_of(icnt, n, root) == 1u ? (uint2)(0u, rk_count_of(icnt, n, root)) : (uint2)(RK_INVALID, 0u);
+}
+__kernel void rk_tree_down(__global const uint2* kids, __global const uint* icnt, const uint n, const uint lo,
+                           const uint hi, __global uint* first, __global uint2* leaf) {
+    const uint k = lo + (uint)get_global_id(0);
+    if (k >= hi) return;
+    const uint f = first[n + k];
+    const uint2 lf = leaf[n + k];
+    const uint a = kids[k].x, b = kids[k].y;
+    const uint fb = f + rk_count_of(icnt, n, a);
+    first[a] = f;
+    first[b] = fb;
+    if (lf.x != RK_INVALID) {
+        leaf[a] = lf;
+        leaf[b] = lf;
+    } else {
+        leaf[a] = rk_out_of(icnt, n, a) == 1u ? (uint2)(f, rk_count_of(icnt, n, a)) : (uint2)(RK_INVALID, 0u);
+        leaf[b] = rk_out_of(icnt, n, b) == 1u ? (uint2)(fb, rk_count_of(icnt, n, b)) : (uint2)(RK_INVALID, 0u);
+    }
+}
+/* Per primitive: prim_ids[slot] = p, its leaf (first slot, size) by slot, and whether the slot
+   starts a block of 4. */
+__kernel void rk_tree_slots(__global const uint* first, __global const uint2* leaf, const uint n, __global uint* prims,
+                            __global uint2* leaf_of, __global uint2* bflag) {
     const uint p = (uint)get_global_id(0);
     if (p >= n) return;
-    uint x = p, s = 0u, below = 0u, leaf = p;
-    for (;;) {
-        if (rk_out_of(icnt, n, x) == 1u) {  /* the highest such node is the leaf */
-            leaf = x;
-            below = s;
-        }
-        const uint g = parent[x];
-        if (g == RK_INVALID) break;
-        const uint2 kk = kids[g - n];
-        if (kk.y == x) s += rk_count_of(icnt, n, kk.x);
-        x = g;
-    }
+    const uint s = first[p];
+    const uint2 lf = leaf[p];
     prims[s] = p;
-    const uint lfirst = s - below;
-    leaf_of[s] = (uint2)(lfirst, rk_count_of(icnt, n, leaf));
-    bflag[s] = (uint2)(((s - lfirst) & 3u) == 0u ? 1u : 0u, 0u);
-    /* first slot of every node whose leftmost primitive is p */
-    x = p;
-    for (;;) {
-        first[x] = s;
-        const uint g = parent[x];
-        if (g == RK_INVALID || kids[g - n].x != x) break;
-        x = g;
-    }
+    leaf_of[s] = lf;
+    bflag[s] = (uint2)(((s - lf.x) & 3u) == 0u ? 1u : 0u, 0u);
 }
 
 __kernel void rk_tree_blocks(__global const uint* prims, __global const uint2* leaf_of, __global const uint2* bflag,
@@ -499,37 +514,33 @@ RK_INLINE int rk_expand(const uint v, __global const uint2* kids, __global const
     return k;
 }
 
-/* One item per inner merge node (id n + k, flag index root - id): whether it starts a wide
-   node. The root does; below, the collapse is replayed from the root down v's path. */
-__kernel void rk_tree_roots(__global const uint2* kids, __global const uint* parent, __global const float* rbox,
-                            __global const float* ibox, __global const uint* icnt, const uint n,
-                            __global uint2* wflag) {
-    const uint k = (uint)get_global_id(0);
-    if (k >= n - 1u) return;
-    const uint v = n + k, root = 2u * n - 2u;
-    uint path[RK_MAX_DEPTH + 2];
-    int len = 0, is_root = 0;
-    if (rk_out_of(icnt, n, v) != 1u && rk_out_of(icnt, n, root) != 1u) {
-        for (uint x = v; x != RK_INVALID && len < RK_MAX_DEPTH + 2; x = parent[x]) path[len++] = x;
-        /* path[len - 1] = root ... path[0] = v */
-        int at = len - 1;
-        is_root = at == 0;
-        while (at > 0) {
-            uint slot[RK_WIDTH];
-            const int cnt = rk_expand(path[at], kids, rbox, ibox, icnt, n, slot);
-            int next = -1;
-            for (int d = at - 1; d >= 0 && next < 0; --d)
-                for (int i = 0; i < cnt; ++i)
-                    if (slot[i] == path[d]) next = d;
-            if (next < 0 || rk_out_of(icnt, n, path[next]) == 1u) {
-                is_root = 0;  /* v was opened inside a wide node, or lies inside a leaf */
-                break;
-            }
-            at = next;
-            is_root = at == 0;
-        }
+/* Which inner nodes start a wide node, level by level from the root (wflag[root - id]): the
+   root does; each wide node of a level marks its inner slots (rk_expand) and lists them for
+   the next level. counts[L]: nodes on level L (the list order varies, the flags do not). */
+__kernel void rk_tree_roots_init(__global const uint* icnt, const uint n, __global uint2* wflag, __global uint* list,
+                                 __global uint* counts) {
+    const uint q = (uint)get_global_id(0);
+    if (q >= n - 1u) return;
+    const int inner = rk_out_of(icnt, n, 2u * n - 2u) != 1u;
+    wflag[q] = (uint2)(q == 0u && inner ? 1u : 0u, 0u);
+    if (q == 0u) {
+        list[0] = 2u * n - 2u;
+        counts[0] = inner ? 1u : 0u;
+        for (int l = 1; l < RK_MAX_DEPTH + 2; ++l) counts[l] = 0u;
     }
-    wflag[root - v] = (uint2)(is_root ? 1u : 0u, 0u);
+}
+__kernel void rk_tree_roots(__global const uint2* kids, __global const float* rbox, __global const float* ibox,
+                            __global const uint* icnt, const uint n, __global const uint* list, __global uint* out,
+                            __global uint* counts, const uint level, __global uint2* wflag) {
+    const uint i = (uint)get_global_id(0);
+    if (i >= counts[level]) return;
+    uint slot[RK_WIDTH];
+    const int cnt = rk_expand(list[i], kids, rbox, ibox, icnt, n, slot);
+    for (int c = 0; c < cnt; ++c) {
+        if (rk_out_of(icnt, n, slot[c]) == 1u) continue;
+        wflag[2u * n - 2u - slot[c]] = (uint2)(1u, 0u);
+        out[atomic_inc(&counts[level + 1u])] = slot[c];
+    }
 }
 
 RK_INLINE void rk_slot_clear(__global rk_wnode* w, const int c) {
