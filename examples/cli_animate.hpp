@@ -36,15 +36,18 @@
 //                cl: the matrices uploaded, SkinHook run by a
 //                raykit::cl::DeviceScene<SkinHook>.
 //   refit        the character's trees refitted in place (CPU: binary and
-//                8-wide blocks, or rebuilt when the RebuildPolicy (threshold
-//                1.15) says so; cl: its binary tree on the device)
+//                8-wide blocks; cl: its 8-wide tree and blocks on the device),
+//                or rebuilt when the RebuildPolicy (threshold 1.15) says so (cl:
+//                PLOC on the device, raykit::cl::DeviceRebuild; the policy's
+//                cost measure and the rebuild are in this column too)
 //   top          the top-level tree over the two instances
 //   trace/shade  the render stage: CPU split by thread time (FrameLoop); cl:
 //                device time of the closest-hit + shadow kernels / of the
 //                shade kernels (raykit::cl::DeviceRenderer)
-//   sah          CPU: SAH growth of the character's refitted tree over its
-//                last build; decision "refit" or "rebuild" (cl: always refit,
-//                no growth measured).
+//   sah          SAH growth of the character's refitted tree over its last
+//                build (CPU: of the binary tree; cl: of the 8-wide tree,
+//                rk_tree_cost); decision "refit" or "rebuild" ("rebuild (host)"
+//                where the device builder gave up and the CPU built it).
 // With --device cl the whole frame runs on the device (DeviceScene update,
 // then DeviceRenderer over it): no vertex is read back, only the image.
 //
@@ -370,7 +373,9 @@ inline int run_animate(const AnimateArgs& a) {
     std::optional<raykit::cl::DeviceScene<SkinHook>> ds;
     std::optional<raykit::cl::DeviceRenderer> renderer;
     if (a.device_cl) {
-        ds.emplace(raykit::cl::Device::shared(), rs.scene);
+        raykit::cl::DeviceRebuild rebuild;  // the CPU frame's policy, on the device
+        rebuild.enabled = true;
+        ds.emplace(raykit::cl::Device::shared(), rs.scene, rebuild);
         upload_skin(*ds, rs.scene, body, skin);
         renderer.emplace(*ds, rs.materials, rs.lights);
     }
@@ -389,6 +394,7 @@ inline int run_animate(const AnimateArgs& a) {
         const double interp_ms = ms(t);
         Image img;
         FrameStats st;
+        bool host_built = false;
         if (!on_device) {
             const SkinHook::Host host{skin.offsets, skin.links, mats};
             loop.update(vertex_hook(
@@ -406,8 +412,11 @@ inline int run_animate(const AnimateArgs& a) {
             raykit::cl::DeviceRenderStats drs;
             img = renderer->render(cam, set, &drs);
             st.ms.vertex = upload_ms + ft.vertex_ms;
-            st.ms.refit = ft.refit_ms;
+            st.ms.refit = ft.refit_ms + ft.rebuild_ms;
             st.ms.top = ft.top_level_ms;
+            st.worst_growth = ft.worst_growth;
+            st.rebuilt = ft.rebuilt;
+            host_built = ft.rebuilt_on_host != 0;
             st.ms.trace = drs.trace_ms + drs.shadow_ms;
             st.ms.shade = drs.shade_ms;
         }
@@ -415,7 +424,7 @@ inline int run_animate(const AnimateArgs& a) {
         write_png(img, raykit_cli::animate_frame_name(a.output, a.first + k));
         std::printf("%6ld %8.2f %8.3f %8.3f %8.3f %8.3f %8.2f %8.2f %7.3f  %s\n", a.first + k, af, interp_ms,
                     st.ms.vertex, st.ms.refit, st.ms.top, st.ms.trace, st.ms.shade, st.worst_growth,
-                    st.rebuilt ? "rebuild" : "refit");
+                    st.rebuilt ? (host_built ? "rebuild (host)" : "rebuild") : "refit");
         std::fflush(stdout);
         const double row[6] = {interp_ms, st.ms.vertex, st.ms.refit, st.ms.top, st.ms.trace, st.ms.shade};
         for (int i = 0; i < 6; ++i) sum[i] += row[i];
