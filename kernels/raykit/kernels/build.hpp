@@ -224,20 +224,14 @@ __kernel void rk_ploc_nn(__global const float* cl, const uint cap, const uint m,
     nn[i] = best;
 }
 
-/* The round's exclusive sums of (keep, merge) per cluster: a mutual pair i < j merges into
-   i's place, j's is dropped. rk_scan_blocks with the flags made from nn on the fly; pos gets
-   the sums within each block of RK_SCAN_BLOCK, rk_ploc_sums the blocks' and the new counts. */
-__kernel void rk_ploc_count(__global const uint* nn, const uint m, __global uint2* pos, __global uint2* sums) {
-    __local uint2 part[RK_SCAN_GROUP];
+/* Block scans: a work-group of RK_SCAN_GROUP items takes a block of RK_SCAN_BLOCK entries,
+   RK_SCAN_PER = RK_SCAN_BLOCK / RK_SCAN_GROUP consecutive ones per item. rk_group_scan: each
+   item brings the total of its entries and gets the total of the items before it; item 0
+   writes the block's total to sums[group]. rk_serial_scan: sums[0..blocks) made exclusive in
+   place by one work item; returns the total. */
+#define RK_SCAN_PER (RK_SCAN_BLOCK / RK_SCAN_GROUP)
+RK_INLINE uint2 rk_group_scan(__local uint2* part, const uint2 s, __global uint2* sums) {
     const uint l = (uint)get_local_id(0);
-    const uint per = RK_SCAN_BLOCK / RK_SCAN_GROUP;
-    const uint first = (uint)get_group_id(0) * RK_SCAN_BLOCK + l * per;
-    uint2 s = (uint2)(0u, 0u);
-    for (uint i = first; i < first + per && i < m; ++i) {
-        const uint j = nn[i];
-        const int mutual = nn[j] == i;
-        s += (uint2)((mutual && j < i) ? 0u : 1u, (mutual && i < j) ? 1u : 0u);
-    }
     part[l] = s;
     barrier(CLK_LOCAL_MEM_FENCE);
     if (l == 0u) {
@@ -250,68 +244,67 @@ __kernel void rk_ploc_count(__global const uint* nn, const uint m, __global uint
         sums[get_group_id(0)] = acc;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    uint2 acc = part[l];
-    for (uint i = first; i < first + per && i < m; ++i) {
+    return part[l];
+}
+RK_INLINE uint2 rk_serial_scan(__global uint2* sums, const uint blocks) {
+    uint2 acc = (uint2)(0u, 0u);
+    for (uint k = 0; k < blocks; ++k) {
+        const uint2 v = sums[k];
+        sums[k] = acc;
+        acc += v;
+    }
+    return acc;
+}
+
+/* (keep, merge) of PLOC cluster i: a mutual pair i < j merges into i's place, j's is dropped. */
+RK_INLINE uint2 rk_ploc_flag(__global const uint* nn, const uint i) {
+    const uint j = nn[i];
+    const int mutual = nn[j] == i;
+    return (uint2)((mutual && j < i) ? 0u : 1u, (mutual && i < j) ? 1u : 0u);
+}
+
+/* The round's exclusive sums of (keep, merge) within each block (the flags made from nn on the
+   fly); rk_ploc_sums then sums the blocks and sets the new counts. */
+__kernel void rk_ploc_count(__global const uint* nn, const uint m, __global uint2* pos, __global uint2* sums) {
+    __local uint2 part[RK_SCAN_GROUP];
+    const uint first = (uint)get_group_id(0) * RK_SCAN_BLOCK + (uint)get_local_id(0) * RK_SCAN_PER;
+    const uint last = min(m, first + RK_SCAN_PER);
+    uint2 s = (uint2)(0u, 0u);
+    for (uint i = first; i < last; ++i) s += rk_ploc_flag(nn, i);
+    uint2 acc = rk_group_scan(part, s, sums);
+    for (uint i = first; i < last; ++i) {
         pos[i] = acc;
-        const uint j = nn[i];
-        const int mutual = nn[j] == i;
-        acc += (uint2)((mutual && j < i) ? 0u : 1u, (mutual && i < j) ? 1u : 0u);
+        acc += rk_ploc_flag(nn, i);
     }
 }
 /* One work item: block sums made exclusive; state: [7] the merge-tree size before the round
    (the new nodes' base), [0] the new cluster count, [1] the new size, [2] rounds. */
 __kernel void rk_ploc_sums(__global uint2* sums, const uint blocks, __global uint* state) {
     if (get_global_id(0) != 0) return;
-    uint2 acc = (uint2)(0u, 0u);
-    for (uint k = 0; k < blocks; ++k) {
-        const uint2 v = sums[k];
-        sums[k] = acc;
-        acc += v;
-    }
+    const uint2 total = rk_serial_scan(sums, blocks);
     state[7] = state[1];
-    state[0] = acc.x;
-    state[1] += acc.y;
+    state[0] = total.x;
+    state[1] += total.y;
     state[2] += 1u;
 }
 
-/* Exclusive sums of uint2 over `count` entries: blocks of RK_SCAN_BLOCK entries (one
-   work-group of RK_SCAN_GROUP items each), then the block sums, then the offsets added. */
+/* Exclusive sums of uint2 over `count` entries: the blocks, then the block sums (total[0]: all
+   of them), then the blocks' offsets added. */
 __kernel void rk_scan_blocks(__global const uint2* in, __global uint2* out, __global uint2* sums, const uint count) {
     __local uint2 part[RK_SCAN_GROUP];
-    const uint l = (uint)get_local_id(0);
-    const uint per = RK_SCAN_BLOCK / RK_SCAN_GROUP;
-    const uint first = (uint)get_group_id(0) * RK_SCAN_BLOCK + l * per;
+    const uint first = (uint)get_group_id(0) * RK_SCAN_BLOCK + (uint)get_local_id(0) * RK_SCAN_PER;
+    const uint last = min(count, first + RK_SCAN_PER);
     uint2 s = (uint2)(0u, 0u);
-    for (uint k = first; k < first + per && k < count; ++k) s += in[k];
-    part[l] = s;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    if (l == 0u) {
-        uint2 acc = (uint2)(0u, 0u);
-        for (uint k = 0; k < RK_SCAN_GROUP; ++k) {
-            const uint2 v = part[k];
-            part[k] = acc;
-            acc += v;
-        }
-        sums[get_group_id(0)] = acc;
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    uint2 acc = part[l];
-    for (uint k = first; k < first + per && k < count; ++k) {
+    for (uint k = first; k < last; ++k) s += in[k];
+    uint2 acc = rk_group_scan(part, s, sums);
+    for (uint k = first; k < last; ++k) {
         const uint2 v = in[k];
         out[k] = acc;
         acc += v;
     }
 }
-/* One work item: the block sums made exclusive; the total goes to total[0]. */
 __kernel void rk_scan_sums(__global uint2* sums, const uint blocks, __global uint2* total) {
-    if (get_global_id(0) != 0) return;
-    uint2 acc = (uint2)(0u, 0u);
-    for (uint k = 0; k < blocks; ++k) {
-        const uint2 v = sums[k];
-        sums[k] = acc;
-        acc += v;
-    }
-    total[0] = acc;
+    if (get_global_id(0) == 0) total[0] = rk_serial_scan(sums, blocks);
 }
 __kernel void rk_scan_add(__global uint2* out, __global const uint2* sums, const uint count) {
     const uint k = (uint)get_global_id(0);
