@@ -30,12 +30,14 @@
 //                         iteration with a -D option (so neither raykit's nor PoCL's cache helps),
 //                         plus the first launch (PoCL compiles the work-group function then)
 //   cl_program/cached     build_program() of an already built program (the in-process cache)
-//   cl_build/<mesh>/device   an object's tree built on the device (cl/device_build.hpp: PLOC,
-//                         8-wide nodes and blocks written into device arrays, refit tables
-//                         included) from vertices already there; mesh torus2k (a character's
-//                         size), bunny, torus100k; counter rounds (PLOC rounds)
-//   cl_build/<mesh>/cpu_twin/threads:2   the same tree on the CPU (cpu_twin_build: PlocBuilder
-//                         without post-pass, BlockBvh8::build, device_tree) on 2 threads
+//   cl_build/<mesh>/<ploc|sortaxis>/device   an object's tree built on the device
+//                         (cl/device_build.hpp: PLOC or sort by axis, 8-wide nodes and blocks
+//                         written into device arrays, refit tables included) from vertices
+//                         already there; mesh torus2k (a character's size), bunny, torus100k;
+//                         counters rounds (PLOC rounds or sort-by-axis levels), launches
+//   cl_build/<mesh>/<ploc|sortaxis>/cpu_twin/threads:2   the same tree on the CPU
+//                         (cpu_twin_build: PlocBuilder without post-pass or SortAxisBuilder,
+//                         BlockBvh8::build) on 2 threads
 //   cl_build/<mesh>/cpu_sah/threads:2    what the CPU frame rebuilds with (Scene::rebuild_object:
 //                         binned SAH, BlockBvh8::build)
 //   cl_frame/torus100k/device   one frame of a 100k-triangle dynamic mesh: wave vertex hook,
@@ -223,12 +225,13 @@ const raykit::Mesh* build_mesh(benchmark::State& state, const std::string& name)
     return s ? &s->mesh : nullptr;
 }
 
-void BM_Build(benchmark::State& state, std::string name, BuildCase which) {
+void BM_Build(benchmark::State& state, std::string name, BuildCase which, rcl::DeviceBuildMethod method) {
     const raykit::Mesh* mesh = build_mesh(state, name);
     if (!mesh) return;
     rcl::Device* dev = device_or_skip(state);
     if (!dev) return;
-    const rcl::DeviceBuildConfig cfg;
+    rcl::DeviceBuildConfig cfg;
+    cfg.method = method;
     if (which == BuildCase::cpu_twin) {
         for (auto _ : state) benchmark::DoNotOptimize(rcl::cpu_twin_build(*mesh, cfg, 2));
     } else if (which == BuildCase::cpu_sah) {
@@ -464,13 +467,21 @@ const bool registered = [] {
             ->UseRealTime()
             ->MinTime(0.3)
             ->Unit(benchmark::kMillisecond);
-    for (const char* mesh : {"torus2k", "bunny", "torus100k"})
-        for (const auto& [name, which] : {std::pair{"device", BuildCase::device}, std::pair{"cpu_twin/threads:2", BuildCase::cpu_twin},
-                                          std::pair{"cpu_sah/threads:2", BuildCase::cpu_sah}})
-            benchmark::RegisterBenchmark((std::string("cl_build/") + mesh + "/" + name).c_str(), BM_Build, std::string(mesh), which)
-                ->UseRealTime()
-                ->MinTime(0.5)
-                ->Unit(benchmark::kMillisecond);
+    for (const char* mesh : {"torus2k", "bunny", "torus100k"}) {
+        for (const auto& [method, mname] :
+             {std::pair{rcl::DeviceBuildMethod::ploc, "ploc"}, std::pair{rcl::DeviceBuildMethod::sortaxis, "sortaxis"}})
+            for (const auto& [name, which] : {std::pair{"device", BuildCase::device}, std::pair{"cpu_twin/threads:2", BuildCase::cpu_twin}})
+                benchmark::RegisterBenchmark((std::string("cl_build/") + mesh + "/" + mname + "/" + name).c_str(), BM_Build,
+                                             std::string(mesh), which, method)
+                    ->UseRealTime()
+                    ->MinTime(0.5)
+                    ->Unit(benchmark::kMillisecond);
+        benchmark::RegisterBenchmark((std::string("cl_build/") + mesh + "/cpu_sah/threads:2").c_str(), BM_Build, std::string(mesh),
+                                     BuildCase::cpu_sah, rcl::DeviceBuildMethod::ploc)
+            ->UseRealTime()
+            ->MinTime(0.5)
+            ->Unit(benchmark::kMillisecond);
+    }
     benchmark::RegisterBenchmark("cl_program/first", BM_ProgramFirst)->Iterations(3)->UseRealTime()->Unit(benchmark::kMillisecond);
     benchmark::RegisterBenchmark("cl_program/cached", BM_ProgramCached)->UseRealTime()->Unit(benchmark::kMicrosecond);
     benchmark::RegisterBenchmark("cl_frame/torus100k/device", BM_FrameDevice)->UseRealTime()->MinTime(1.0)->Unit(benchmark::kMillisecond);

@@ -161,21 +161,34 @@ Mesh subset(const Mesh& m, std::size_t count) {
     return s;
 }
 
-TEST(DeviceBuild, EqualsCpuTwinOnTori) {
+/// The device's builders, each against its own CPU twin.
+class DeviceBuild : public ::testing::TestWithParam<rcl::DeviceBuildMethod> {
+protected:
+    rcl::DeviceBuildConfig config() const {
+        rcl::DeviceBuildConfig c;
+        c.method = GetParam();
+        return c;
+    }
+};
+INSTANTIATE_TEST_SUITE_P(Methods, DeviceBuild,
+                         ::testing::Values(rcl::DeviceBuildMethod::ploc, rcl::DeviceBuildMethod::sortaxis),
+                         [](const auto& info) { return info.param == rcl::DeviceBuildMethod::ploc ? "ploc" : "sortaxis"; });
+
+TEST_P(DeviceBuild, EqualsCpuTwinOnTori) {
     RAYKIT_REQUIRE_DEVICE(dev);
-    rcl::DeviceBuilder builder(dev);
-    for (std::size_t n : {3000u, 20000u}) {
+    rcl::DeviceBuilder builder(dev, config());
+    for (std::size_t n : {3000u, 20000u, 70000u}) {
         const Mesh m = make_bumpy_torus(n);
         const auto r = expect_twin(dev, builder, m, ("torus " + std::to_string(n)).c_str());
         EXPECT_TRUE(r.built);
-        std::printf("torus %zu: %u rounds, height %u, %u nodes, %u blocks\n", m.triangles.size(), r.rounds, r.height, r.nodes,
+        std::printf("torus %zu: %u rounds/levels, height %u, %u nodes, %u blocks\n", m.triangles.size(), r.rounds, r.height, r.nodes,
                     r.blocks);
     }
 }
 
-TEST(DeviceBuild, EqualsCpuTwinOnRealMeshes) {
+TEST_P(DeviceBuild, EqualsCpuTwinOnRealMeshes) {
     RAYKIT_REQUIRE_DEVICE(dev);
-    rcl::DeviceBuilder builder(dev);
+    rcl::DeviceBuilder builder(dev, config());
     int ran = 0;
     for (const char* f : {"obj/stanford_bunny/stanford-bunny.obj", "obj/thesis_scene/Scene.obj"}) {
         const std::filesystem::path p = std::filesystem::path(RAYKIT_SHARED_DATA_DIR) / f;
@@ -189,9 +202,9 @@ TEST(DeviceBuild, EqualsCpuTwinOnRealMeshes) {
     if (ran == 0) GTEST_SKIP() << "shared data absent";
 }
 
-TEST(DeviceBuild, SmallAndOffsetInputs) {
+TEST_P(DeviceBuild, SmallAndOffsetInputs) {
     RAYKIT_REQUIRE_DEVICE(dev);
-    rcl::DeviceBuilder builder(dev);
+    rcl::DeviceBuilder builder(dev, config());
     const Mesh torus = make_bumpy_torus(2000);
     for (std::size_t n : {1u, 2u, 3u, 5u, 12u, 13u, 64u, 513u, 1025u})
         EXPECT_TRUE(expect_twin(dev, builder, subset(torus, n), ("first " + std::to_string(n)).c_str()).built);
@@ -204,9 +217,9 @@ TEST(DeviceBuild, SmallAndOffsetInputs) {
     EXPECT_EQ(empty.result.nodes, 0u);
 }
 
-TEST(DeviceBuild, HostileGeometry) {
+TEST_P(DeviceBuild, HostileGeometry) {
     RAYKIT_REQUIRE_DEVICE(dev);
-    rcl::DeviceBuilder builder(dev);
+    rcl::DeviceBuilder builder(dev, config());
     std::mt19937 rng(11);
     std::uniform_real_distribution<float> U(-1.0f, 1.0f);
     Mesh m;
@@ -241,7 +254,7 @@ TEST(DeviceBuild, HostileGeometry) {
     EXPECT_TRUE(expect_twin(dev, builder, all_nan, "every vertex NaN").built);
 }
 
-TEST(DeviceBuild, CoincidentCentroidsGiveUpAndSaySo) {
+TEST(DeviceBuildPloc, CoincidentCentroidsGiveUpAndSaySo) {
     RAYKIT_REQUIRE_DEVICE(dev);
     rcl::DeviceBuilder builder(dev);
     // every triangle the same: PLOC merges one pair per round (a chain), so the device gives
@@ -256,6 +269,56 @@ TEST(DeviceBuild, CoincidentCentroidsGiveUpAndSaySo) {
     EXPECT_GT(r.rounds, rcl::DeviceBuilder::kMaxRounds);
     const auto small = expect_twin(dev, builder, subset(m, 50), "50 coincident");
     EXPECT_TRUE(small.built);
+}
+
+TEST(DeviceBuildSortAxis, CoincidentCentroidsPairGreedilyAndStayShallow) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    rcl::DeviceBuildConfig cfg;
+    cfg.method = rcl::DeviceBuildMethod::sortaxis;
+    rcl::DeviceBuilder builder(dev, cfg);
+    // equal distances everywhere: mutual pairing takes neighbours two by two (the rank of a pair
+    // breaks the ties), so unlike PLOC this stays O(log n) deep and the device builds it
+    Mesh m;
+    for (std::uint32_t i = 0; i < 5000; ++i) {
+        m.positions.insert(m.positions.end(), {vec3(0, 0, 0), vec3(1, 0, 0), vec3(0, 1, 0)});
+        m.triangles.push_back({{3 * i, 3 * i + 1, 3 * i + 2}});
+    }
+    const auto r = expect_twin(dev, builder, m, "5000 coincident");
+    EXPECT_TRUE(r.built);
+    EXPECT_LE(r.height, 20u);
+    // windows of 1 and 16, and the greedy pairing of a level with few mutual pairs
+    for (unsigned w : {1u, 16u}) {
+        cfg.window = w;
+        rcl::DeviceBuilder b2(dev, cfg);
+        EXPECT_TRUE(expect_twin(dev, b2, make_bumpy_torus(9000), ("window " + std::to_string(w)).c_str()).built);
+    }
+    cfg.window = 17;
+    EXPECT_THROW(rcl::DeviceBuilder(dev, cfg), std::invalid_argument);
+    // a chain: triangles along x with growing gaps, so each one's nearest is the one before and
+    // a level has one mutual pair per chunk; levels of more than 256 elements then pair
+    // greedily (halving), the last 256 one pair a level: about 100 levels here, not 3000
+    cfg.window = 2;
+    rcl::DeviceBuilder b3(dev, cfg);
+    Mesh chain;
+    float x = 0.0f, gap = 0.01f;
+    for (std::uint32_t i = 0; i < 3000; ++i, x += gap, gap *= 1.002f) {
+        chain.positions.insert(chain.positions.end(), {vec3(x, 0, 0), vec3(x + 1e-3f, 0, 0), vec3(x, 1e-3f, 0)});
+        chain.triangles.push_back({{3 * i, 3 * i + 1, 3 * i + 2}});
+    }
+    const auto rc = expect_twin(dev, b3, chain, "growing gaps");
+    EXPECT_TRUE(rc.built);
+    EXPECT_LE(rc.rounds, 300u) << "levels: the greedy fallback did not run";
+    // the same along a spiral: the Morton order is not the chain's, so greedy windows choose
+    Mesh spiral;
+    float a = 0.0f, step = 0.002f;
+    for (std::uint32_t i = 0; i < 3000; ++i, a += step, step *= 1.001f) {
+        const vec3 p(std::cos(a) * (1.0f + a), std::sin(a) * (1.0f + a), 0.1f * a);
+        spiral.positions.insert(spiral.positions.end(), {p, p + vec3(1e-3f, 0, 0), p + vec3(0, 1e-3f, 0)});
+        spiral.triangles.push_back({{3 * i, 3 * i + 1, 3 * i + 2}});
+    }
+    const auto rs = expect_twin(dev, b3, spiral, "spiral chain");
+    EXPECT_TRUE(rs.built);
+    std::printf("chain: %u levels, spiral: %u levels\n", rc.rounds, rs.rounds);
 }
 
 // ---------------------------------------------------------------- the frame's rebuild stage

@@ -260,7 +260,8 @@ struct SortAxisBuilder {
         return bvh;
     }
 
-private:
+    /// A level's chunks: max(1, m / kChunk) of them (the device twin, cl/device_build.hpp, uses
+    /// these three constants too).
     static constexpr std::size_t kChunk = 2048;
     /// Pairing::mutual: a level of more than kGreedyFallbackMin elements
     /// with fewer than 1 / kMinMutualShare of them in mutual pairs pairs
@@ -268,6 +269,8 @@ private:
     /// measured scenes has one).
     static constexpr std::size_t kMinMutualShare = 16;
     static constexpr std::size_t kGreedyFallbackMin = 256;
+
+private:
 
     /// Sorts sort words (all distinct) that are nearly in order: insertion
     /// sort while it moves few words, else the radix sort. Either gives the
@@ -319,12 +322,13 @@ private:
         }
     };
 
-    /// Half the surface area of a ∪ b.
+    /// Half the surface area of a ∪ b (fused_proof_half_area: the device builder's twin computes
+    /// the same float).
     static float area_dist(const AABB& a, const AABB& b) noexcept {
         const float ex = detail::clamp_extent(std::max(a.max.x, b.max.x) - std::min(a.min.x, b.min.x));
         const float ey = detail::clamp_extent(std::max(a.max.y, b.max.y) - std::min(a.min.y, b.min.y));
         const float ez = detail::clamp_extent(std::max(a.max.z, b.max.z) - std::min(a.min.z, b.min.z));
-        return ex * ey + ey * ez + ez * ex;
+        return fused_proof_half_area(ex, ey, ez);
     }
     /// Squared distance between centres.
     static float centre_dist(const vec3& a, const vec3& b) noexcept {

@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "raykit/bvh/ploc.hpp"
+#include "raykit/bvh/sortaxis.hpp"
 #include "raykit/cl/buffer.hpp"
 #include "raykit/cl/device_tree.hpp"
 #include "raykit/cl/layout.hpp"
@@ -43,14 +44,28 @@
 
 namespace raykit::cl {
 
-/// What the device builder builds: PLOC with this radius, leaves by this cost.
+/// The device's builders: the twins of PlocBuilder and SortAxisBuilder.
+enum class DeviceBuildMethod { ploc, sortaxis };
+
+/// What the device builder builds: PLOC with this radius, or sort-by-axis (SortAxisBuilder's
+/// default: Morton axis, area metric, mutual pairing) with this window; leaves by this cost.
 struct DeviceBuildConfig {
-    unsigned radius = 4;                       ///< PlocBuilder::Config::radius (1..1024)
+    DeviceBuildMethod method = DeviceBuildMethod::ploc;
+    unsigned radius = 4;                           ///< PlocBuilder::Config::radius (1..1024)
+    unsigned window = 2;                           ///< SortAxisBuilder::Config::window (1..kMaxWindow)
     LeafCost leaf = BlockBvh8::sah_config().leaf;  ///< blocks of 4, leaves up to 12 triangles
+    static constexpr unsigned kMaxWindow = 16;     ///< the device's greedy fallback keeps W + 1 in registers
 };
 
 /// The CPU twin of a device build: the tree DeviceBuilder::build makes, made on the CPU.
 inline BlockBvh8 cpu_twin_build(const MeshView& mesh, const DeviceBuildConfig& cfg = {}, unsigned threads = 0) {
+    if (cfg.method == DeviceBuildMethod::sortaxis) {
+        SortAxisBuilder::Config c;
+        c.window = cfg.window;
+        c.leaf = cfg.leaf;
+        c.threads = threads;
+        return BlockBvh8::build(mesh, build_bvh<SortAxisBuilder>(mesh, c), threads);
+    }
     PlocBuilder::Config c;
     c.radius = cfg.radius;
     c.leaf = cfg.leaf;
@@ -61,9 +76,12 @@ inline BlockBvh8 cpu_twin_build(const MeshView& mesh, const DeviceBuildConfig& c
 
 /// Program part with the build kernels (needs refit_part() before it, for the box helpers).
 inline SourcePart build_part() {
-    return {"raykit/kernels/build.hpp", std::string("#define RK_BUILD_GROUP 256\n#define RK_RADIX_BLOCK 512\n"
-                                                    "#define RK_SCAN_GROUP 64\n#define RK_SCAN_BLOCK 1024\n") +
-                                            kernels::kBuild};
+    return {"raykit/kernels/build.hpp",
+            "#define RK_BUILD_GROUP 256\n#define RK_RADIX_BLOCK 512\n#define RK_SCAN_GROUP 64\n#define RK_SCAN_BLOCK 1024\n"
+            "#define RK_SA_CHUNK " + std::to_string(SortAxisBuilder::kChunk) + "u\n#define RK_SA_GREEDY_MIN " +
+                std::to_string(SortAxisBuilder::kGreedyFallbackMin) + "u\n#define RK_SA_MUTUAL_SHARE " +
+                std::to_string(SortAxisBuilder::kMinMutualShare) + "u\n#define RK_SA_MAX_WINDOW " +
+                std::to_string(DeviceBuildConfig::kMaxWindow) + "u\n" + kernels::kBuild};
 }
 
 /// Where a build writes: the scene's node and block arrays and the refit tables, at the
@@ -103,12 +121,17 @@ public:
             throw std::invalid_argument("raykit::cl::DeviceBuilder: the device has no cl_khr_fp64 (the builder's areas "
                                         "are computed in double to match the CPU bit for bit)");
         if (cfg.radius < 1 || cfg.radius > 1024) throw std::invalid_argument("raykit::cl::DeviceBuilder: radius must be in [1, 1024]");
+        if (cfg.window < 1 || cfg.window > DeviceBuildConfig::kMaxWindow)
+            throw std::invalid_argument("raykit::cl::DeviceBuilder: window must be in [1, " +
+                                        std::to_string(DeviceBuildConfig::kMaxWindow) + "]");
         check_leaf_block(cfg.leaf.leaf_block, "raykit::cl::DeviceBuilder");
         if (cfg.leaf.leaf_block != 4) throw std::invalid_argument("raykit::cl::DeviceBuilder: leaves are blocks of 4 (leaf_block 4)");
         const char* names[] = {"rk_build_refs", "rk_build_bounds", "rk_build_morton", "rk_radix_count", "rk_radix_scatter",
                                "rk_ploc_init",  "rk_ploc_nn",      "rk_ploc_count",   "rk_ploc_sums",   "rk_scan_blocks",
                                "rk_scan_sums",  "rk_scan_add",     "rk_ploc_merge", "rk_tree_parents", "rk_tree_up",
-                               "rk_tree_top", "rk_tree_down", "rk_tree_slots", "rk_tree_blocks",  "rk_tree_roots_init", "rk_tree_roots", "rk_tree_wide"};
+                               "rk_tree_top", "rk_tree_down", "rk_tree_slots", "rk_tree_blocks",  "rk_tree_roots_init", "rk_tree_roots", "rk_tree_wide",
+                               "rk_sa_init", "rk_sa_keys", "rk_sa_gather", "rk_sa_nearest", "rk_sa_count", "rk_sa_plan",
+                               "rk_sa_pair"};
         for (std::size_t i = 0; i < kKernels; ++i) k_[i] = p.kernel(names[i]);
         state_ = Buffer<std::uint32_t>(dev, 8);
         level_counts_ = Buffer<std::uint32_t>(dev, RAYKIT_BVH_MAX_DEPTH + 2);
@@ -142,16 +165,23 @@ public:
         go(k(Refs), n, triangles, positions, rec.triangle_offset, rec.vertex_offset, n, rbox_, cen_);
         set_args(k(Bounds), cen_, n, fstate_, state_);
         launch_n(k(Bounds), kBoundsGroup, kBoundsGroup);
-        go(k(Morton), n, cen_, fstate_, n, keys_[0], ids_[0]);
-        sort(n);
-        go(k(Init), n, ids_[0], rbox_, cen_, fstate_, n, cl_[0], cnode_[0]);
+        const bool sortaxis = cfg_.method == DeviceBuildMethod::sortaxis;
+        if (sortaxis) {
+            go(k(SaInit), n, rbox_, cen_, fstate_, n, cl_[0], cnode_[0], ekey_[0]);
+        } else {
+            go(k(Morton), n, cen_, fstate_, n, keys_[0], ids_[0]);
+            sort(n, 8);
+            go(k(Init), n, ids_[0], rbox_, cen_, fstate_, n, cl_[0], cnode_[0]);
+        }
         std::uint32_t st[8] = {};
         int cur = 0;
         if (n > 1) {
-            // one round per launch set, sized by the cluster count read after the previous one
+            // one round (PLOC) or level (sort by axis) per launch set, sized by the element
+            // count read after the previous one
             bases_.assign(1, 0u);  // (n == 1 launches no rk_tree_down)
             for (std::uint32_t m = n; m > 1; cur ^= 1) {
-                round(m, n, cur);
+                if (sortaxis) level(m, n, cur);
+                else round(m, n, cur);
                 state_.read(*dev_, std::span<std::uint32_t>(st, 8));
                 m = st[0];
                 bases_.push_back(st[1]);
@@ -203,7 +233,7 @@ public:
 private:
     enum Kernel {
         Refs, Bounds, Morton, RadixCount, RadixScatter, Init, Nn, Count, Sums, ScanBlocks, ScanSums, ScanAdd, Merge,
-        Parents, Up, Top, Down, Slots, Blocks, RootsInit, Roots, Wide, kKernels
+        Parents, Up, Top, Down, Slots, Blocks, RootsInit, Roots, Wide, SaInit, SaKeys, SaGather, SaNearest, SaCount, SaPlan, SaPair, kKernels
     };
     static constexpr std::size_t kBoundsGroup = 256, kRadixBlock = 512, kScanGroup = 64, kScanBlock = 1024;
     static constexpr std::size_t kGroup = 256;
@@ -233,7 +263,11 @@ private:
         for (int i = 0; i < 2; ++i) {
             cl_[i].allocate(d, 6 * m);
             cnode_[i].allocate(d, m);
+            ekey_[i].allocate(d, m);
         }
+        srt_.allocate(d, 6 * m);
+        snode_.allocate(d, m);
+        chunk_.allocate(d, m / SortAxisBuilder::kChunk + 1);
         nn_.allocate(d, m);
         pos_.allocate(d, m);
         sums_.allocate(d, (std::max(m, digits) + kScanBlock - 1) / kScanBlock);
@@ -257,10 +291,10 @@ private:
 
     static std::uint32_t radix_blocks(std::uint32_t n) { return static_cast<std::uint32_t>((n + kRadixBlock - 1) / kRadixBlock); }
 
-    /// Radix sort of (key, index), 8 passes of 8 bits (63-bit keys); ends in keys_[0], ids_[0].
-    void sort(std::uint32_t n) {
+    /// Radix sort of (key, index), `passes` (even) of 8 bits; ends in keys_[0], ids_[0].
+    void sort(std::uint32_t n, std::uint32_t passes) {
         const std::uint32_t blocks = radix_blocks(n);
-        for (std::uint32_t pass = 0; pass < 8; ++pass) {
+        for (std::uint32_t pass = 0; pass < passes; ++pass) {
             const int from = int(pass & 1u), to = from ^ 1;
             const std::uint32_t shift = 8 * pass;
             go(k(RadixCount), blocks, keys_[from], n, shift, digits_, blocks);
@@ -277,6 +311,22 @@ private:
         set_args(k(ScanSums), sums_, blocks, total_);
         launch_n(k(ScanSums), 1, 1);
         go(k(ScanAdd), count, out, sums_, count);
+    }
+
+    /// One sort-by-axis level over m of n elements from set `cur` into the other: the 30-bit keys
+    /// sorted (4 passes), gathered in that order, nearest neighbours, pairs per chunk, the plan,
+    /// the pairing.
+    void level(std::uint32_t m, std::uint32_t n, int cur) {
+        const std::uint32_t chunks = std::max<std::uint32_t>(1, m / std::uint32_t(SortAxisBuilder::kChunk));
+        go(k(SaKeys), m, ekey_[cur], m, keys_[0], ids_[0]);
+        sort(m, 4);
+        go(k(SaGather), m, ids_[0], cl_[cur], cnode_[cur], n, m, srt_, snode_);
+        go(k(SaNearest), m, srt_, n, m, std::uint32_t(cfg_.window), nn_);
+        go(k(SaCount), chunks, nn_, m, chunk_);
+        set_args(k(SaPlan), chunk_, m, state_);
+        launch_n(k(SaPlan), 1, 1);
+        go(k(SaPair), chunks, srt_, snode_, keys_[0], n, m, nn_, chunk_, state_, n, std::uint32_t(cfg_.window),
+           cl_[cur ^ 1], cnode_[cur ^ 1], ekey_[cur ^ 1], kids_, fstate_);
     }
 
     /// One PLOC round over m of n clusters (the arrays' stride) from set `cur` into the other.
@@ -298,11 +348,11 @@ private:
     Buffer<std::uint32_t> state_, level_counts_, list_[2];
     Buffer<float> fstate_;
     Buffer<cl_uint2> total_;
-    Buffer<float> rbox_, cen_, cl_[2], ibox_;
+    Buffer<float> rbox_, cen_, cl_[2], srt_, ibox_;
     Buffer<cl_ulong> keys_[2];
-    Buffer<std::uint32_t> ids_[2], cnode_[2], nn_, parent_, counters_, icnt_, prims_, first_;
+    Buffer<std::uint32_t> ekey_[2], snode_, ids_[2], cnode_[2], nn_, parent_, counters_, icnt_, prims_, first_;
     std::vector<std::uint32_t> bases_;  ///< merge-tree size after each PLOC round (0 first)
-    Buffer<cl_uint2> leaf_, digits_, digit_pos_, pos_, sums_, kids_, leaf_of_, bflag_, bpos_, wflag_, wpos_;
+    Buffer<cl_uint2> chunk_, leaf_, digits_, digit_pos_, pos_, sums_, kids_, leaf_of_, bflag_, bpos_, wflag_, wpos_;
 };
 
 }  // namespace raykit::cl
