@@ -24,6 +24,12 @@
 //   refit         when a vertex stage ran or set_positions() was called:
 //                 every dynamic tree, level-wise or one-pass (cl/refit.hpp),
 //                 its leaves rewriting their blocks from the moved vertices;
+//   rebuild       with DeviceRebuild::enabled, after a refit: each dynamic tree's
+//                 SAH cost (one launch, a float per object read back), the
+//                 RebuildPolicy per object, and a device build (cl/device_build.hpp,
+//                 PLOC or sort by axis) of each decided one into its ranges, with
+//                 its refit tables; the CPU twin builds it only when the device
+//                 builder gives up (FrameTimes::rebuilt_on_host);
 //   top level     dynamic root boxes gathered (one launch + one small read,
 //                 only after a refit), instance world boxes from the Scene's
 //                 transforms (transformed_box), the top-level tree built (or
