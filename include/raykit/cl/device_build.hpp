@@ -1,6 +1,6 @@
 // raykit/cl/device_build.hpp — building an object's tree on the device (PLOC), no read-back.
 //
-//   DeviceBuilder builder(dev);                        // its own program, or share one that holds build_part()
+//   DeviceBuilder builder(dev);                        // its own program, or share one that holds parts(method)
 //   DeviceBuildResult r = builder.build(triangles, positions, record, object, target);
 //   if (!r.built) ...                                  // too deep for the device walk: build on the CPU
 //
@@ -9,7 +9,8 @@
 // post-pass) collapsed by BlockBvh8::build and put in the device's form by device_tree() —
 // the same wide nodes, slot boxes and triangle blocks bit for bit; only the numbering of
 // wide nodes and blocks differs (descending merge id and left-to-right leaf order here, the
-// CPU's stack order there). The stages are in kernels/raykit/kernels/build.hpp.
+// CPU's stack order there). The stages are in kernels/raykit/kernels/build.hpp (shared, back
+// end), build_ploc.hpp and build_sortaxis.hpp (the builders).
 //
 // The nodes and blocks go straight into the scene's arrays at the object's offsets, with the
 // refit tables of the new topology (RefitPlan's parents, needs and one-pass starts), so the
@@ -26,6 +27,7 @@
 #pragma once
 
 #include <bit>
+#include <iterator>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -39,6 +41,8 @@
 #include "raykit/cl/program.hpp"
 #include "raykit/cl/refit.hpp"
 #include "raykit/kernels/build.hpp"
+#include "raykit/kernels/build_ploc.hpp"
+#include "raykit/kernels/build_sortaxis.hpp"
 #include "raykit/scene/block_bvh.hpp"
 #include "raykit/scene/build.hpp"
 
@@ -74,14 +78,25 @@ inline BlockBvh8 cpu_twin_build(const MeshView& mesh, const DeviceBuildConfig& c
     return BlockBvh8::build(mesh, build_bvh<PlocBuilder>(mesh, c), threads);
 }
 
-/// Program part with the build kernels (needs refit_part() before it, for the box helpers).
-inline SourcePart build_part() {
-    return {"raykit/kernels/build.hpp",
-            "#define RK_BUILD_GROUP 256\n#define RK_RADIX_BLOCK 512\n#define RK_SCAN_GROUP 64\n#define RK_SCAN_BLOCK 1024\n"
-            "#define RK_SA_CHUNK " + std::to_string(SortAxisBuilder::kChunk) + "u\n#define RK_SA_GREEDY_MIN " +
-                std::to_string(SortAxisBuilder::kGreedyFallbackMin) + "u\n#define RK_SA_MUTUAL_SHARE " +
-                std::to_string(SortAxisBuilder::kMinMutualShare) + "u\n#define RK_SA_MAX_WINDOW " +
-                std::to_string(DeviceBuildConfig::kMaxWindow) + "u\n" + kernels::kBuild};
+/// Program parts with the build kernels of `method`: the shared stages and back end, then the
+/// builder's (a program holds only the builder it uses). They need refit_part() before them,
+/// for the box helpers.
+inline std::vector<SourcePart> build_parts(DeviceBuildMethod method) {
+    std::vector<SourcePart> p;
+    p.push_back({"raykit/kernels/build.hpp",
+                 "#define RK_BUILD_GROUP 256\n#define RK_RADIX_BLOCK 512\n#define RK_SCAN_GROUP 64\n"
+                 "#define RK_SCAN_BLOCK 1024\n" +
+                     std::string(kernels::kBuild)});
+    if (method == DeviceBuildMethod::ploc) {
+        p.push_back({"raykit/kernels/build_ploc.hpp", kernels::kBuildPloc});
+    } else {
+        p.push_back({"raykit/kernels/build_sortaxis.hpp",
+                     "#define RK_SA_CHUNK " + std::to_string(SortAxisBuilder::kChunk) + "u\n#define RK_SA_GREEDY_MIN " +
+                         std::to_string(SortAxisBuilder::kGreedyFallbackMin) + "u\n#define RK_SA_MUTUAL_SHARE " +
+                         std::to_string(SortAxisBuilder::kMinMutualShare) + "u\n#define RK_SA_MAX_WINDOW " +
+                         std::to_string(DeviceBuildConfig::kMaxWindow) + "u\n" + kernels::kBuildSortAxis});
+    }
+    return p;
 }
 
 /// Where a build writes: the scene's node and block arrays and the refit tables, at the
@@ -114,8 +129,8 @@ public:
     DeviceBuilder() = default;
     /// A builder with its own program.
     explicit DeviceBuilder(Device& dev, const DeviceBuildConfig& cfg = {})
-        : DeviceBuilder(dev, build_program(dev, assemble(parts()), raykit_build_options(dev)), cfg) {}
-    /// A builder on a program that holds parts() (e.g. a scene's).
+        : DeviceBuilder(dev, build_program(dev, assemble(parts(cfg.method)), raykit_build_options(dev)), cfg) {}
+    /// A builder on a program that holds parts(cfg.method) (e.g. a scene's).
     DeviceBuilder(Device& dev, const Program& p, const DeviceBuildConfig& cfg = {}) : dev_(&dev), cfg_(cfg) {
         if (!dev.info().fp64)
             throw std::invalid_argument("raykit::cl::DeviceBuilder: the device has no cl_khr_fp64 (the builder's areas "
@@ -126,13 +141,22 @@ public:
                                         std::to_string(DeviceBuildConfig::kMaxWindow) + "]");
         check_leaf_block(cfg.leaf.leaf_block, "raykit::cl::DeviceBuilder");
         if (cfg.leaf.leaf_block != 4) throw std::invalid_argument("raykit::cl::DeviceBuilder: leaves are blocks of 4 (leaf_block 4)");
+        // in Kernel order; the other builder's kernels are not in the program
         const char* names[] = {"rk_build_refs", "rk_build_bounds", "rk_build_morton", "rk_radix_count", "rk_radix_scatter",
-                               "rk_ploc_init",  "rk_ploc_nn",      "rk_ploc_count",   "rk_ploc_sums",   "rk_scan_blocks",
-                               "rk_scan_sums",  "rk_scan_add",     "rk_ploc_merge", "rk_tree_parents", "rk_tree_up",
-                               "rk_tree_top", "rk_tree_down", "rk_tree_slots", "rk_tree_blocks",  "rk_tree_roots_init", "rk_tree_roots", "rk_tree_wide",
-                               "rk_sa_init", "rk_sa_keys", "rk_sa_gather", "rk_sa_nearest", "rk_sa_count", "rk_sa_plan",
-                               "rk_sa_pair"};
-        for (std::size_t i = 0; i < kKernels; ++i) k_[i] = p.kernel(names[i]);
+                               "rk_ploc_init", "rk_ploc_nn", "rk_ploc_count", "rk_ploc_sums", "rk_scan_blocks",
+                               "rk_scan_sums", "rk_scan_add", "rk_scan_one_group", "rk_ploc_merge", "rk_tree_parents",
+                               "rk_tree_up", "rk_tree_top", "rk_tree_down", "rk_tree_slots", "rk_tree_blocks",
+                               "rk_tree_roots_init", "rk_tree_roots", "rk_tree_wide", "rk_sa_init", "rk_sa_keys",
+                               "rk_sa_gather", "rk_sa_nearest", "rk_sa_count", "rk_sa_plan", "rk_sa_pair"};
+        static_assert(std::size(names) == kKernels);
+        const bool ploc = cfg.method == DeviceBuildMethod::ploc;
+        for (std::size_t i = 0; i < kKernels; ++i) {
+            const std::string name = names[i];
+            const bool ploc_only = name == "rk_build_morton" || name.rfind("rk_ploc_", 0) == 0;
+            const bool sortaxis_only = name.rfind("rk_sa_", 0) == 0;
+            if ((ploc_only && !ploc) || (sortaxis_only && ploc)) continue;
+            k_[i] = p.kernel(name);
+        }
         state_ = Buffer<std::uint32_t>(dev, 8);
         level_counts_ = Buffer<std::uint32_t>(dev, RAYKIT_BVH_MAX_DEPTH + 2);
         fstate_ = Buffer<float>(dev, 8);
@@ -140,10 +164,10 @@ public:
     }
 
     /// Program parts a builder's program needs.
-    static std::vector<SourcePart> parts() {
+    static std::vector<SourcePart> parts(DeviceBuildMethod method) {
         std::vector<SourcePart> p = base_parts();
         p.push_back(refit_part());
-        p.push_back(build_part());
+        for (SourcePart& b : build_parts(method)) p.push_back(std::move(b));
         return p;
     }
 
@@ -232,10 +256,12 @@ public:
 
 private:
     enum Kernel {
-        Refs, Bounds, Morton, RadixCount, RadixScatter, Init, Nn, Count, Sums, ScanBlocks, ScanSums, ScanAdd, Merge,
+        Refs, Bounds, Morton, RadixCount, RadixScatter, Init, Nn, Count, Sums, ScanBlocks, ScanSums, ScanAdd, ScanOne, Merge,
         Parents, Up, Top, Down, Slots, Blocks, RootsInit, Roots, Wide, SaInit, SaKeys, SaGather, SaNearest, SaCount, SaPlan, SaPair, kKernels
     };
     static constexpr std::size_t kBoundsGroup = 256, kRadixBlock = 512, kScanGroup = 64, kScanBlock = 1024;
+    /// Scans up to this long run in one launch (rk_scan_one_group); longer ones in three.
+    static constexpr std::uint32_t kOneGroupScan = 1u << 16;
     static constexpr std::size_t kGroup = 256;
 
     ::cl::Kernel& k(Kernel i) noexcept { return k_[i]; }
@@ -305,6 +331,11 @@ private:
 
     /// Exclusive sums of `in`'s first `count` entries into `out`; the total into total_.
     void scan(const Buffer<cl_uint2>& in, Buffer<cl_uint2>& out, std::uint32_t count) {
+        if (count <= kOneGroupScan) {
+            set_args(k(ScanOne), in, out, count, total_);
+            launch_n(k(ScanOne), kScanGroup, kScanGroup);
+            return;
+        }
         const std::uint32_t blocks = static_cast<std::uint32_t>((count + kScanBlock - 1) / kScanBlock);
         set_args(k(ScanBlocks), in, out, sums_, count);
         launch_n(k(ScanBlocks), std::size_t(blocks) * kScanGroup, kScanGroup);

@@ -534,7 +534,8 @@ private:
         parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
         for (SourcePart& p : trace_parts(packets_, TraceKernels::scene)) parts.push_back(std::move(p));
         if (!dynamic_.empty()) parts.push_back(refit_part());
-        if (!dynamic_.empty() && rebuild_.enabled) parts.push_back(build_part());
+        if (!dynamic_.empty() && rebuild_.enabled)
+            for (SourcePart& b : build_parts(rebuild_.build.method)) parts.push_back(std::move(b));
         for_each_hook([&]<std::size_t I>() {
             if (used & (1ull << I)) {
                 const auto hp = hook_parts<std::tuple_element_t<I, HookList>>();

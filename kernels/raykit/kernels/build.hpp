@@ -1,22 +1,21 @@
-// raykit/kernels/build.hpp — PLOC on the device: an object's 8-wide tree and triangle blocks
-// built from its current vertices, the twin of PlocBuilder (bvh/ploc.hpp, post-pass off) →
-// BlockBvh8::build(mesh, bvh) → device_tree() on the CPU, bit for bit (cl/device_build.hpp).
+// raykit/kernels/build.hpp — building an object's tree on the device (cl/device_build.hpp):
+// what the device's twins of the bottom-up builders share. The builders themselves make the
+// merge tree (kernels/raykit/kernels/build_ploc.hpp, build_sortaxis.hpp; a program holds the
+// one it uses); this part holds the stages before and after them, the twins of
+// primitive_refs, sanitize_centers, the radix sort, and the back end that turns the merge
+// tree into BlockBvh8::build's 8-wide tree and blocks in device_tree()'s form, bit for bit.
 //
-// Stages (one work item per primitive, cluster or node unless said):
+// Stages (one work item per primitive, element or node unless said):
 //   rk_build_refs      triangle boxes (MeshView::bounds) and centres (AABB::center; NaN when empty)
 //   rk_build_bounds    one work-group: bounds of the finite centres (sanitize_centers)
-//   rk_build_morton    63-bit Morton keys (MortonQuantizer) and indices
-//   rk_radix_count / rk_radix_scatter   LSD radix sort, 8 passes of 8 bits, stable: the CPU's
-//                      order (its radix sort of the keys over indices 0..n-1)
-//   rk_ploc_init       clusters in key order, working boxes (working_box)
-//   per round: rk_ploc_nn (nearest of R on each side, fused_proof_half_area, first smallest),
-//              rk_ploc_count, rk_ploc_sums (mutual pairs; exclusive sums of keeps and merges;
-//              cluster and node counts in `state`), rk_ploc_merge (a new node takes the lower
-//              place, numbered in array order)
+//   rk_radix_count / rk_radix_scatter   LSD radix sort of (key, index), 8 bits a pass, stable:
+//                      the CPU's order (its radix sort of keys over indices 0..n-1)
+//   rk_scan_*          exclusive sums of uint2 (block scans, or one work-group for short runs)
+//   -- the builder's rounds or levels (build_ploc.hpp / build_sortaxis.hpp) --
 //   rk_tree_parents, rk_tree_up   real boxes, counts and the leaf merge (node_cost) bottom-up;
 //                      the last of two children to arrive computes the parent (atomic counter)
-//   rk_tree_top, rk_tree_down   top-down, one launch per PLOC round (last to first): first
-//                      prim_ids slot (left-to-right order) of every node, and its leaf
+//   rk_tree_top, rk_tree_down   top-down, one launch per round or level (last to first):
+//                      first prim_ids slot (left-to-right order) of every node, and its leaf
 //   rk_tree_slots      per primitive: its slot, its leaf's first slot and size, block starts
 //                      flagged (then scanned)
 //   rk_tree_blocks     the leaves' TriangleBlock4s (lanes past a leaf's end repeat its last)
@@ -60,9 +59,9 @@ RK_INLINE void rk_store_box(__global float* b, const uint i, const rk_box r) {
 }
 RK_INLINE int rk_finite3(const float3 p) { return all(isfinite(p)); }
 
-/* state: [0] clusters, [1] merge-tree nodes, [2] rounds, [3] wide nodes, [4] blocks,
-   [5] height of the root, [7] merge-tree nodes before the round; fstate: [0..5] centroid
-   bounds */
+/* state: [0] elements (clusters), [1] merge-tree nodes, [2] rounds or levels, [3] wide nodes,
+   [4] blocks, [5] height of the root, [6] (sort by axis) the level pairs greedily, [7]
+   merge-tree nodes before the round; fstate: [0..5] centroid bounds */
 
 __kernel void rk_build_refs(__global const uint* tris, __global const float* pos, const uint tri_off,
                             const uint vert_off, const uint n, __global float* rbox, __global float* cen) {
@@ -112,35 +111,6 @@ RK_INLINE float3 rk_sanitized(__global const float* cen, __global const float* f
     return rk_finite3(c) ? c : (vload3(0, fstate) + vload3(1, fstate)) * 0.5f;
 }
 
-RK_INLINE ulong rk_spread21(ulong x) {
-    x &= 0x1FFFFFul;
-    x = (x | x << 32) & 0x1F00000000FFFFul;
-    x = (x | x << 16) & 0x1F0000FF0000FFul;
-    x = (x | x << 8) & 0x100F00F00F00F00Ful;
-    x = (x | x << 4) & 0x10C30C30C30C30C3ul;
-    x = (x | x << 2) & 0x1249249249249249ul;
-    return x;
-}
-
-__kernel void rk_build_morton(__global const float* cen, __global const float* fstate, const uint n,
-                              __global ulong* keys, __global uint* ids) {
-    const uint i = (uint)get_global_id(0);
-    if (i >= n) return;
-    const float3 lo = vload3(0, fstate), e = vload3(1, fstate) - lo;
-    const float m = e.x < e.y ? (e.y < e.z ? e.z : e.y) : (e.x < e.z ? e.z : e.x);
-    const float scale = m > 0.0f && m < INFINITY ? 2097151.0f / m : 0.0f;
-    const float3 p = rk_sanitized(cen, fstate, i);
-    ulong key = 0ul;
-    for (int a = 0; a < 3; ++a) {
-        float f = ((a == 0 ? p.x : a == 1 ? p.y : p.z) - (a == 0 ? lo.x : a == 1 ? lo.y : lo.z)) * scale;
-        f = f > 0.0f ? f : 0.0f;
-        f = f < 2097151.0f ? f : 2097151.0f;
-        key |= rk_spread21((ulong)f) << (2 - a);
-    }
-    keys[i] = key;
-    ids[i] = i;
-}
-
 /* LSD radix sort of (key, index), 8 bits a pass: stable, so from indices in order it gives the
    order of the CPU's radix sort (util/radix_sort.hpp). One work item per block of
    RK_RADIX_BLOCK entries counts its digits, then scatters its entries in order; counts are
@@ -173,7 +143,8 @@ __kernel void rk_radix_scatter(__global const ulong* keys, __global const uint* 
     }
 }
 
-/* Clusters: six float arrays of `cap` (lx, ly, lz, hx, hy, hz) and node ids. */
+/* Elements (PLOC's clusters, sort by axis's level): six float arrays of `cap` (lx, ly, lz, hx,
+   hy, hz) and node ids. */
 RK_INLINE rk_box rk_cluster_box(__global const float* c, const uint cap, const uint i) {
     rk_box b;
     b.lo = (float3)(c[i], c[cap + i], c[2 * cap + i]);
@@ -183,45 +154,6 @@ RK_INLINE rk_box rk_cluster_box(__global const float* c, const uint cap, const u
 RK_INLINE void rk_cluster_set(__global float* c, const uint cap, const uint i, const rk_box b) {
     c[i] = b.lo.x; c[cap + i] = b.lo.y; c[2 * cap + i] = b.lo.z;
     c[3 * cap + i] = b.hi.x; c[4 * cap + i] = b.hi.y; c[5 * cap + i] = b.hi.z;
-}
-
-__kernel void rk_ploc_init(__global const uint* ids, __global const float* rbox, __global const float* cen,
-                           __global const float* fstate, const uint n, __global float* cl, __global uint* cnode) {
-    const uint s = (uint)get_global_id(0);
-    if (s >= n) return;
-    const uint p = ids[s];
-    rk_box b = rk_load_box(rbox, p);
-    const int usable = (b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z) && rk_finite3(b.lo) &&
-                       rk_finite3(b.hi);
-    if (!usable) b.lo = b.hi = rk_sanitized(cen, fstate, p);
-    rk_cluster_set(cl, n, s, b);
-    cnode[s] = p;
-}
-
-__kernel void rk_ploc_nn(__global const float* cl, const uint cap, const uint m, const uint R, __global uint* nn) {
-    const uint i = (uint)get_global_id(0);
-    if (i >= m || m < 2u) return;
-    const rk_box a = rk_cluster_box(cl, cap, i);
-    const uint b = i >= R ? i - R : 0u, e = min(m, i + R + 1u);
-    uint best = RK_INVALID;
-    float bestd = 0.0f;
-    for (uint j = b; j < e; ++j) {
-        if (j == i) continue;
-        float ex = (cl[3 * cap + j] > a.hi.x ? cl[3 * cap + j] : a.hi.x) - (cl[j] < a.lo.x ? cl[j] : a.lo.x);
-        float ey = (cl[4 * cap + j] > a.hi.y ? cl[4 * cap + j] : a.hi.y) -
-                   (cl[cap + j] < a.lo.y ? cl[cap + j] : a.lo.y);
-        float ez = (cl[5 * cap + j] > a.hi.z ? cl[5 * cap + j] : a.hi.z) -
-                   (cl[2 * cap + j] < a.lo.z ? cl[2 * cap + j] : a.lo.z);
-        ex = ex < FLT_MAX ? ex : FLT_MAX;
-        ey = ey < FLT_MAX ? ey : FLT_MAX;
-        ez = ez < FLT_MAX ? ez : FLT_MAX;
-        const float d = rk_half_area3(ex, ey, ez);
-        if (best == RK_INVALID || d < bestd) {
-            best = j;
-            bestd = d;
-        }
-    }
-    nn[i] = best;
 }
 
 /* Block scans: a work-group of RK_SCAN_GROUP items takes a block of RK_SCAN_BLOCK entries,
@@ -256,38 +188,6 @@ RK_INLINE uint2 rk_serial_scan(__global uint2* sums, const uint blocks) {
     return acc;
 }
 
-/* (keep, merge) of PLOC cluster i: a mutual pair i < j merges into i's place, j's is dropped. */
-RK_INLINE uint2 rk_ploc_flag(__global const uint* nn, const uint i) {
-    const uint j = nn[i];
-    const int mutual = nn[j] == i;
-    return (uint2)((mutual && j < i) ? 0u : 1u, (mutual && i < j) ? 1u : 0u);
-}
-
-/* The round's exclusive sums of (keep, merge) within each block (the flags made from nn on the
-   fly); rk_ploc_sums then sums the blocks and sets the new counts. */
-__kernel void rk_ploc_count(__global const uint* nn, const uint m, __global uint2* pos, __global uint2* sums) {
-    __local uint2 part[RK_SCAN_GROUP];
-    const uint first = (uint)get_group_id(0) * RK_SCAN_BLOCK + (uint)get_local_id(0) * RK_SCAN_PER;
-    const uint last = min(m, first + RK_SCAN_PER);
-    uint2 s = (uint2)(0u, 0u);
-    for (uint i = first; i < last; ++i) s += rk_ploc_flag(nn, i);
-    uint2 acc = rk_group_scan(part, s, sums);
-    for (uint i = first; i < last; ++i) {
-        pos[i] = acc;
-        acc += rk_ploc_flag(nn, i);
-    }
-}
-/* One work item: block sums made exclusive; state: [7] the merge-tree size before the round
-   (the new nodes' base), [0] the new cluster count, [1] the new size, [2] rounds. */
-__kernel void rk_ploc_sums(__global uint2* sums, const uint blocks, __global uint* state) {
-    if (get_global_id(0) != 0) return;
-    const uint2 total = rk_serial_scan(sums, blocks);
-    state[7] = state[1];
-    state[0] = total.x;
-    state[1] += total.y;
-    state[2] += 1u;
-}
-
 /* Exclusive sums of uint2 over `count` entries: the blocks, then the block sums (total[0]: all
    of them), then the blocks' offsets added. */
 __kernel void rk_scan_blocks(__global const uint2* in, __global uint2* out, __global uint2* sums, const uint count) {
@@ -306,237 +206,25 @@ __kernel void rk_scan_blocks(__global const uint2* in, __global uint2* out, __gl
 __kernel void rk_scan_sums(__global uint2* sums, const uint blocks, __global uint2* total) {
     if (get_global_id(0) == 0) total[0] = rk_serial_scan(sums, blocks);
 }
+/* The whole scan in one work-group of RK_SCAN_GROUP items (short arrays: one launch instead of
+   three); each item takes ceil(count / RK_SCAN_GROUP) consecutive entries. */
+__kernel void rk_scan_one_group(__global const uint2* in, __global uint2* out, const uint count,
+                                __global uint2* total) {
+    __local uint2 part[RK_SCAN_GROUP];
+    const uint per = (count + RK_SCAN_GROUP - 1u) / RK_SCAN_GROUP;
+    const uint first = min(count, (uint)get_local_id(0) * per), last = min(count, first + per);
+    uint2 s = (uint2)(0u, 0u);
+    for (uint k = first; k < last; ++k) s += in[k];
+    uint2 acc = rk_group_scan(part, s, total);
+    for (uint k = first; k < last; ++k) {
+        const uint2 v = in[k];
+        out[k] = acc;
+        acc += v;
+    }
+}
 __kernel void rk_scan_add(__global uint2* out, __global const uint2* sums, const uint count) {
     const uint k = (uint)get_global_id(0);
     if (k < count) out[k] += sums[k / RK_SCAN_BLOCK];
-}
-
-__kernel void rk_ploc_merge(__global const float* cl, __global const uint* cnode, __global float* next,
-                            __global uint* nnode, const uint cap, __global const uint* nn,
-                            __global const uint2* pos, __global const uint2* sums, __global const uint* state,
-                            const uint n, const uint m, __global uint2* kids) {
-    const uint i = (uint)get_global_id(0);
-    if (i >= m || m < 2u) return;
-    const uint j = nn[i];
-    const int mutual = nn[j] == i;
-    if (mutual && j < i) return;
-    const uint2 p = pos[i] + sums[i / RK_SCAN_BLOCK];
-    rk_box b = rk_cluster_box(cl, cap, i);
-    uint id = cnode[i];
-    if (mutual) {
-        const uint k = state[7] + p.y;
-        kids[k] = (uint2)(cnode[i], cnode[j]);
-        rk_box_grow(&b, rk_cluster_box(cl, cap, j));
-        id = n + k;
-    }
-    rk_cluster_set(next, cap, p.x, b);
-    nnode[p.x] = id;
-}
-
-/* ---------------------------------------------------------------- sort by axis */
-/* The twin of SortAxisBuilder's default (Morton axis, area metric, mutual pairing within a
-   window of W on each side, greedy on a level with too few mutual pairs). Elements of a level
-   live in the cluster arrays (box, node id) with a 30-bit key each (ekey). Per level: the keys
-   radix-sorted (4 passes: stable over element order, as the CPU's sort words), rk_sa_gather,
-   rk_sa_nearest, rk_sa_count (one item per chunk), rk_sa_plan (one item), rk_sa_pair (one item
-   per chunk, in order). Chunks of a level: max(1, m / RK_SA_CHUNK), chunk c from m·c/chunks. */
-
-RK_INLINE uint rk_spread10(uint x) {
-    x = (x | x << 16) & 0x030000FFu;
-    x = (x | x << 8) & 0x0300F00Fu;
-    x = (x | x << 4) & 0x030C30C3u;
-    x = (x | x << 2) & 0x09249249u;
-    return x;
-}
-/* MortonQuantizer::code30 over the centroid bounds in fstate */
-RK_INLINE uint rk_code30(const float3 p, __global const float* fstate) {
-    const float3 lo = vload3(0, fstate), e = vload3(1, fstate) - lo;
-    const float m = e.x < e.y ? (e.y < e.z ? e.z : e.y) : (e.x < e.z ? e.z : e.x);
-    const float scale = (m > 0.0f && m < INFINITY ? 2097151.0f / m : 0.0f) * (1.0f / 2048.0f);
-    uint code = 0u;
-    for (int a = 0; a < 3; ++a) {
-        float f = ((a == 0 ? p.x : a == 1 ? p.y : p.z) - (a == 0 ? lo.x : a == 1 ? lo.y : lo.z)) * scale;
-        f = f > 0.0f ? f : 0.0f;
-        f = f < 1023.0f ? f : 1023.0f;
-        code |= rk_spread10((uint)f) << (2 - a);
-    }
-    return code;
-}
-RK_INLINE uint rk_chunks(const uint m) { return max(1u, m / RK_SA_CHUNK); }
-RK_INLINE uint rk_chunk_lo(const uint m, const uint chunks, const uint c) { return (uint)(((ulong)m * c) / chunks); }
-
-/* Level 0: every primitive an element (working box, node = its index, key of its sanitized
-   centroid); the sort keys of the level as (key, element). */
-__kernel void rk_sa_init(__global const float* rbox, __global const float* cen, __global const float* fstate,
-                         const uint n, __global float* cl, __global uint* cnode, __global uint* ekey) {
-    const uint i = (uint)get_global_id(0);
-    if (i >= n) return;
-    rk_box b = rk_load_box(rbox, i);
-    const int usable = (b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z) && rk_finite3(b.lo) &&
-                       rk_finite3(b.hi);
-    const float3 c = rk_sanitized(cen, fstate, i);
-    if (!usable) b.lo = b.hi = c;
-    rk_cluster_set(cl, n, i, b);
-    cnode[i] = i;
-    ekey[i] = rk_code30(c, fstate);
-}
-__kernel void rk_sa_keys(__global const uint* ekey, const uint m, __global ulong* keys, __global uint* ids) {
-    const uint i = (uint)get_global_id(0);
-    if (i >= m) return;
-    keys[i] = (ulong)ekey[i];
-    ids[i] = i;
-}
-/* The level in sorted order: srt[s] = element ids[s]. */
-__kernel void rk_sa_gather(__global const uint* ids, __global const float* cl, __global const uint* cnode,
-                           const uint cap, const uint m, __global float* srt, __global uint* snode) {
-    const uint s = (uint)get_global_id(0);
-    if (s >= m) return;
-    const uint e = ids[s];
-    rk_cluster_set(srt, cap, s, rk_cluster_box(cl, cap, e));
-    snode[s] = cnode[e];
-}
-/* SortAxisBuilder::area_dist */
-RK_INLINE float rk_area_dist(__global const float* c, const uint cap, const uint a, const uint b) {
-    float ex = (c[3 * cap + a] < c[3 * cap + b] ? c[3 * cap + b] : c[3 * cap + a]) - (c[b] < c[a] ? c[b] : c[a]);
-    float ey = (c[4 * cap + a] < c[4 * cap + b] ? c[4 * cap + b] : c[4 * cap + a]) -
-               (c[cap + b] < c[cap + a] ? c[cap + b] : c[cap + a]);
-    float ez = (c[5 * cap + a] < c[5 * cap + b] ? c[5 * cap + b] : c[5 * cap + a]) -
-               (c[2 * cap + b] < c[2 * cap + a] ? c[2 * cap + b] : c[2 * cap + a]);
-    ex = ex < FLT_MAX ? ex : FLT_MAX;
-    ey = ey < FLT_MAX ? ey : FLT_MAX;
-    ez = ez < FLT_MAX ? ez : FLT_MAX;
-    return rk_half_area3(ex, ey, ez);
-}
-/* SortAxisBuilder::nearest: the nearest of the sorted level's i − W … i + W within i's chunk,
-   ties by the rank of the pair (offset, parity of its lower position, then position). */
-__kernel void rk_sa_nearest(__global const float* srt, const uint cap, const uint m, const uint window,
-                            __global uint* nn) {
-    const uint i = (uint)get_global_id(0);
-    if (i >= m) return;
-    const uint chunks = rk_chunks(m);
-    uint c = (uint)(((ulong)i * chunks) / m);
-    if (c + 1u < chunks && rk_chunk_lo(m, chunks, c + 1u) <= i) ++c;
-    const uint lo = rk_chunk_lo(m, chunks, c), hi = rk_chunk_lo(m, chunks, c + 1u), len = hi - lo;
-    const uint W = min(window, len - 1u), r = i - lo;
-    if (W == 0u) {
-        nn[i] = i;
-        return;
-    }
-    ulong best = 0xFFFFFFFFFFFFFFFFul;
-    for (uint k = min(W, r); k >= 1u; --k) {
-        const float d = rk_area_dist(srt, cap, i - k, i);
-        const ulong key = (ulong)as_uint(d) << 32 | (ulong)(2u * k + ((i - k - lo) & 1u)) << 13 | (ulong)(W - k);
-        best = min(best, key);
-    }
-    for (uint k = 1u; k <= W && r + k < len; ++k) {
-        const float d = rk_area_dist(srt, cap, i, i + k);
-        const ulong key = (ulong)as_uint(d) << 32 | (ulong)(2u * k + ((i - lo) & 1u)) << 13 | (ulong)(W - 1u + k);
-        best = min(best, key);
-    }
-    const uint cc = (uint)(best & 0x1FFFul);
-    nn[i] = cc < W ? i - W + cc : i - W + cc + 1u;
-}
-/* Per chunk: (elements out, new nodes) of mutual pairing. */
-__kernel void rk_sa_count(__global const uint* nn, const uint m, __global uint2* chunk) {
-    const uint c = (uint)get_global_id(0), chunks = rk_chunks(m);
-    if (c >= chunks) return;
-    const uint lo = rk_chunk_lo(m, chunks, c), hi = rk_chunk_lo(m, chunks, c + 1u);
-    uint pairs = 0u;
-    for (uint i = lo; i < hi; ++i) pairs += nn[i] > i && nn[nn[i]] == i;
-    chunk[c] = (uint2)(hi - lo - pairs, pairs);
-}
-/* One item: mutual or greedy for the level (greedy when m > RK_SA_GREEDY_MIN and fewer than
-   1 / RK_SA_MUTUAL_SHARE of the elements pair), the chunks' first output and node (exclusive
-   sums), and state: [7] the merge-tree size before the level, [0] the next level's elements,
-   [1] the merge-tree size after it, [2] levels, [6] greedy. */
-__kernel void rk_sa_plan(__global uint2* chunk, const uint m, __global uint* state) {
-    if (get_global_id(0) != 0) return;
-    const uint chunks = rk_chunks(m);
-    uint pairs = 0u;
-    for (uint c = 0; c < chunks; ++c) pairs += chunk[c].y;
-    const int greedy = m > RK_SA_GREEDY_MIN && (ulong)pairs * RK_SA_MUTUAL_SHARE < (ulong)m;
-    uint2 acc = (uint2)(0u, 0u);
-    for (uint c = 0; c < chunks; ++c) {
-        const uint len = rk_chunk_lo(m, chunks, c + 1u) - rk_chunk_lo(m, chunks, c);
-        const uint2 v = greedy ? (uint2)((len + 1u) / 2u, len / 2u) : chunk[c];
-        chunk[c] = acc;
-        acc += v;
-    }
-    state[7] = state[1];
-    state[0] = acc.x;
-    state[1] += acc.y;
-    state[2] += 1u;
-    state[6] = greedy ? 1u : 0u;
-}
-/* Makes the node over sorted elements a and b: new node `id` (merge-tree index), element o of
-   the next level (its box, node and the key of its box's centre). */
-RK_INLINE void rk_sa_make(__global const float* srt, __global const uint* snode, const uint cap, const uint a,
-                          const uint b, const uint id, const uint n, const uint o, __global float* next,
-                          __global uint* nnode, __global uint* nkey, __global uint2* kids,
-                          __global const float* fstate) {
-    rk_box box = rk_cluster_box(srt, cap, a);
-    rk_box_grow(&box, rk_cluster_box(srt, cap, b));
-    kids[id] = (uint2)(snode[a], snode[b]);
-    rk_cluster_set(next, cap, o, box);
-    nnode[o] = n + id;
-    nkey[o] = rk_code30(box.lo * 0.5f + box.hi * 0.5f, fstate);
-}
-/* Per chunk, in order (SortAxisBuilder::pair_mutual / pair_greedy): the next level keeps the
-   chunk's order, a new node where its first element was; carried elements keep their keys. */
-__kernel void rk_sa_pair(__global const float* srt, __global const uint* snode, __global const ulong* skey,
-                         const uint cap, const uint m, __global const uint* nn, __global const uint2* chunk,
-                         __global const uint* state, const uint n, const uint window, __global float* next,
-                         __global uint* nnode, __global uint* nkey, __global uint2* kids,
-                         __global const float* fstate) {
-    const uint c = (uint)get_global_id(0), chunks = rk_chunks(m);
-    if (c >= chunks) return;
-    const uint lo = rk_chunk_lo(m, chunks, c), hi = rk_chunk_lo(m, chunks, c + 1u);
-    const uint base = state[7] + chunk[c].y, out = chunk[c].x;
-    uint p = 0u, t = 0u;
-    if (state[6] == 0u) {
-        for (uint i = lo; i < hi; ++i) {
-            const uint j = nn[i];
-            if (j == i || nn[j] != i) {
-                rk_cluster_set(next, cap, out + t, rk_cluster_box(srt, cap, i));
-                nnode[out + t] = snode[i];
-                nkey[out + t] = (uint)skey[i];
-                ++t;
-            } else if (i < j) {
-                rk_sa_make(srt, snode, cap, i, j, base + p, n, out + t, next, nnode, nkey, kids, fstate);
-                ++p;
-                ++t;
-            }
-        }
-        return;
-    }
-    uint win[RK_SA_MAX_WINDOW + 1];
-    uint wn = 0u, q = lo;
-    for (;;) {
-        while (wn < window + 1u && q < hi) win[wn++] = q++;
-        if (wn == 0u) break;
-        const uint k = win[0];
-        if (wn == 1u) {
-            rk_cluster_set(next, cap, out + t, rk_cluster_box(srt, cap, k));
-            nnode[out + t] = snode[k];
-            nkey[out + t] = (uint)skey[k];
-            break;
-        }
-        uint best = 1u;
-        float bd = rk_area_dist(srt, cap, k, win[1]);
-        for (uint j = 2u; j < wn; ++j) {
-            const float d = rk_area_dist(srt, cap, k, win[j]);
-            if (d < bd) {
-                bd = d;
-                best = j;
-            }
-        }
-        rk_sa_make(srt, snode, cap, k, win[best], base + t, n, out + t, next, nnode, nkey, kids, fstate);
-        ++t;
-        uint w = 0u;
-        for (uint j = 1u; j < wn; ++j)
-            if (j != best) win[w++] = win[j];
-        wn = w;
-    }
 }
 
 /* ---------------------------------------------------------------- back end */
