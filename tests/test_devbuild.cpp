@@ -254,6 +254,33 @@ TEST_P(DeviceBuild, HostileGeometry) {
     EXPECT_TRUE(expect_twin(dev, builder, all_nan, "every vertex NaN").built);
 }
 
+TEST_P(DeviceBuild, SeededRandomMeshes) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    rcl::DeviceBuilder builder(dev, config());
+    // pbrt-style seeded geometry: sizes from 1 to 5000, uniform, clustered, flat and huge layouts
+    for (std::uint32_t seed = 1; seed <= 12; ++seed) {
+        std::mt19937 rng(seed);
+        std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+        const std::size_t n = std::size_t(1) + rng() % 5000;
+        const int layout = int(seed % 4);
+        const float scale = layout == 3 ? 1e6f : 1.0f;
+        Mesh m;
+        vec3 cluster(0.0f);
+        for (std::size_t i = 0; i < n; ++i) {
+            if (layout == 1 && i % 64 == 0) cluster = vec3(U(rng), U(rng), U(rng)) * 20.0f;
+            vec3 o = layout == 1 ? cluster + vec3(U(rng), U(rng), U(rng)) * 0.05f : vec3(U(rng), U(rng), U(rng)) * 10.0f;
+            if (layout == 2) o.y = 0.0f;  // flat: every triangle in one plane
+            const float e = 0.01f + 0.2f * (U(rng) + 1.0f);
+            const auto k = static_cast<std::uint32_t>(m.positions.size());
+            m.positions.insert(m.positions.end(), {o * scale, (o + vec3(e, 0, U(rng) * e)) * scale,
+                                                   (o + vec3(0, layout == 2 ? 0.0f : e, e)) * scale});
+            m.triangles.push_back({{k, k + 1, k + 2}});
+        }
+        const auto r = expect_twin(dev, builder, m, ("seed " + std::to_string(seed)).c_str());
+        EXPECT_TRUE(r.built) << "seed " << seed;
+    }
+}
+
 TEST(DeviceBuildPloc, CoincidentCentroidsGiveUpAndSaySo) {
     RAYKIT_REQUIRE_DEVICE(dev);
     rcl::DeviceBuilder builder(dev);
