@@ -155,6 +155,20 @@ rcl::DeviceBuildResult expect_twin(rcl::Device& dev, rcl::DeviceBuilder& builder
     return d.result;
 }
 
+/// Appends a triangle with its own three vertices.
+void add_triangle(Mesh& m, const vec3& a, const vec3& b, const vec3& c) {
+    const auto i = static_cast<std::uint32_t>(m.positions.size());
+    m.positions.insert(m.positions.end(), {a, b, c});
+    m.triangles.push_back({{i, i + 1, i + 2}});
+}
+
+/// n copies of one triangle: every centroid coincides.
+Mesh coincident(std::size_t n) {
+    Mesh m;
+    for (std::size_t i = 0; i < n; ++i) add_triangle(m, vec3(0, 0, 0), vec3(1, 0, 0), vec3(0, 1, 0));
+    return m;
+}
+
 Mesh subset(const Mesh& m, std::size_t count) {
     Mesh s = m;
     s.triangles.resize(std::min(count, m.triangles.size()));
@@ -223,11 +237,7 @@ TEST_P(DeviceBuild, HostileGeometry) {
     std::mt19937 rng(11);
     std::uniform_real_distribution<float> U(-1.0f, 1.0f);
     Mesh m;
-    auto tri = [&](vec3 a, vec3 b, vec3 c) {
-        const auto i = static_cast<std::uint32_t>(m.positions.size());
-        m.positions.insert(m.positions.end(), {a, b, c});
-        m.triangles.push_back({{i, i + 1, i + 2}});
-    };
+    auto tri = [&](vec3 a, vec3 b, vec3 c) { add_triangle(m, a, b, c); };
     const float nan = std::numeric_limits<float>::quiet_NaN();
     for (int i = 0; i < 3000; ++i) {
         const vec3 o(U(rng) * 10.0f, U(rng) * 10.0f, U(rng) * 10.0f);
@@ -245,12 +255,8 @@ TEST_P(DeviceBuild, HostileGeometry) {
     }
     const auto r = expect_twin(dev, builder, m, "hostile mix");
     EXPECT_TRUE(r.built) << r.rounds << " rounds, height " << r.height;
-    Mesh all_nan = subset(m, 0);
-    for (int i = 0; i < 50; ++i) {
-        const auto k = static_cast<std::uint32_t>(all_nan.positions.size());
-        all_nan.positions.insert(all_nan.positions.end(), {vec3(nan), vec3(nan), vec3(nan)});
-        all_nan.triangles.push_back({{k, k + 1, k + 2}});
-    }
+    Mesh all_nan;
+    for (int i = 0; i < 50; ++i) add_triangle(all_nan, vec3(nan), vec3(nan), vec3(nan));
     EXPECT_TRUE(expect_twin(dev, builder, all_nan, "every vertex NaN").built);
 }
 
@@ -271,10 +277,7 @@ TEST_P(DeviceBuild, SeededRandomMeshes) {
             vec3 o = layout == 1 ? cluster + vec3(U(rng), U(rng), U(rng)) * 0.05f : vec3(U(rng), U(rng), U(rng)) * 10.0f;
             if (layout == 2) o.y = 0.0f;  // flat: every triangle in one plane
             const float e = 0.01f + 0.2f * (U(rng) + 1.0f);
-            const auto k = static_cast<std::uint32_t>(m.positions.size());
-            m.positions.insert(m.positions.end(), {o * scale, (o + vec3(e, 0, U(rng) * e)) * scale,
-                                                   (o + vec3(0, layout == 2 ? 0.0f : e, e)) * scale});
-            m.triangles.push_back({{k, k + 1, k + 2}});
+            add_triangle(m, o * scale, (o + vec3(e, 0, U(rng) * e)) * scale, (o + vec3(0, layout == 2 ? 0.0f : e, e)) * scale);
         }
         const auto r = expect_twin(dev, builder, m, ("seed " + std::to_string(seed)).c_str());
         EXPECT_TRUE(r.built) << "seed " << seed;
@@ -285,12 +288,9 @@ TEST(DeviceBuildPloc, CoincidentCentroidsGiveUpAndSaySo) {
     RAYKIT_REQUIRE_DEVICE(dev);
     rcl::DeviceBuilder builder(dev);
     // every triangle the same: PLOC merges one pair per round (a chain), so the device gives
-    // up after kMaxRounds and leaves it to the CPU; fifty still finish on the device (a chain of height 49; past RAYKIT_BVH_MAX_DEPTH it gives up too)
-    Mesh m;
-    for (std::uint32_t i = 0; i < 2000; ++i) {
-        m.positions.insert(m.positions.end(), {vec3(0, 0, 0), vec3(1, 0, 0), vec3(0, 1, 0)});
-        m.triangles.push_back({{3 * i, 3 * i + 1, 3 * i + 2}});
-    }
+    // up after kMaxRounds and leaves it to the CPU; fifty still finish on the device (a chain
+    // of height 49; past RAYKIT_BVH_MAX_DEPTH it gives up too)
+    const Mesh m = coincident(2000);
     const auto r = expect_twin(dev, builder, m, "2000 coincident");
     EXPECT_FALSE(r.built);
     EXPECT_GT(r.rounds, rcl::DeviceBuilder::kMaxRounds);
@@ -305,12 +305,7 @@ TEST(DeviceBuildSortAxis, CoincidentCentroidsPairGreedilyAndStayShallow) {
     rcl::DeviceBuilder builder(dev, cfg);
     // equal distances everywhere: mutual pairing takes neighbours two by two (the rank of a pair
     // breaks the ties), so unlike PLOC this stays O(log n) deep and the device builds it
-    Mesh m;
-    for (std::uint32_t i = 0; i < 5000; ++i) {
-        m.positions.insert(m.positions.end(), {vec3(0, 0, 0), vec3(1, 0, 0), vec3(0, 1, 0)});
-        m.triangles.push_back({{3 * i, 3 * i + 1, 3 * i + 2}});
-    }
-    const auto r = expect_twin(dev, builder, m, "5000 coincident");
+    const auto r = expect_twin(dev, builder, coincident(5000), "5000 coincident");
     EXPECT_TRUE(r.built);
     EXPECT_LE(r.height, 20u);
     // windows of 1 and 16, and the greedy pairing of a level with few mutual pairs
@@ -329,8 +324,7 @@ TEST(DeviceBuildSortAxis, CoincidentCentroidsPairGreedilyAndStayShallow) {
     Mesh chain;
     float x = 0.0f, gap = 0.01f;
     for (std::uint32_t i = 0; i < 3000; ++i, x += gap, gap *= 1.002f) {
-        chain.positions.insert(chain.positions.end(), {vec3(x, 0, 0), vec3(x + 1e-3f, 0, 0), vec3(x, 1e-3f, 0)});
-        chain.triangles.push_back({{3 * i, 3 * i + 1, 3 * i + 2}});
+        add_triangle(chain, vec3(x, 0, 0), vec3(x + 1e-3f, 0, 0), vec3(x, 1e-3f, 0));
     }
     const auto rc = expect_twin(dev, b3, chain, "growing gaps");
     EXPECT_TRUE(rc.built);
@@ -340,8 +334,7 @@ TEST(DeviceBuildSortAxis, CoincidentCentroidsPairGreedilyAndStayShallow) {
     float a = 0.0f, step = 0.002f;
     for (std::uint32_t i = 0; i < 3000; ++i, a += step, step *= 1.001f) {
         const vec3 p(std::cos(a) * (1.0f + a), std::sin(a) * (1.0f + a), 0.1f * a);
-        spiral.positions.insert(spiral.positions.end(), {p, p + vec3(1e-3f, 0, 0), p + vec3(0, 1e-3f, 0)});
-        spiral.triangles.push_back({{3 * i, 3 * i + 1, 3 * i + 2}});
+        add_triangle(spiral, p, p + vec3(1e-3f, 0, 0), p + vec3(0, 1e-3f, 0));
     }
     const auto rs = expect_twin(dev, b3, spiral, "spiral chain");
     EXPECT_TRUE(rs.built);

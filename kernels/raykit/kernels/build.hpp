@@ -111,6 +111,19 @@ RK_INLINE float3 rk_sanitized(__global const float* cen, __global const float* f
     return rk_finite3(c) ? c : (vload3(0, fstate) + vload3(1, fstate)) * 0.5f;
 }
 
+/* MortonQuantizer over the centroid bounds in fstate: p's cell per axis, (p − lo)·scale·per_unit
+   with scale = 2097151 / the largest extent (one scale on every axis), clamped to [0, top]
+   (NaN to 0). PLOC's 63-bit codes: per_unit 1, top 2097151; code30: per_unit 1/2048, top 1023. */
+RK_INLINE uint3 rk_morton_cells(const float3 p, __global const float* fstate, const float per_unit, const float top) {
+    const float3 lo = vload3(0, fstate), e = vload3(1, fstate) - lo;
+    const float m = e.x < e.y ? (e.y < e.z ? e.z : e.y) : (e.x < e.z ? e.z : e.x);
+    const float scale = (m > 0.0f && m < INFINITY ? 2097151.0f / m : 0.0f) * per_unit;
+    float3 f = (p - lo) * scale;
+    f = select((float3)(0.0f), f, isgreater(f, (float3)(0.0f)));
+    f = select((float3)(top), f, isless(f, (float3)(top)));
+    return convert_uint3(f);
+}
+
 /* LSD radix sort of (key, index), 8 bits a pass: stable, so from indices in order it gives the
    order of the CPU's radix sort (util/radix_sort.hpp). One work item per block of
    RK_RADIX_BLOCK entries counts its digits, then scatters its entries in order; counts are
@@ -188,20 +201,26 @@ RK_INLINE uint2 rk_serial_scan(__global uint2* sums, const uint blocks) {
     return acc;
 }
 
-/* Exclusive sums of uint2 over `count` entries: the blocks, then the block sums (total[0]: all
-   of them), then the blocks' offsets added. */
-__kernel void rk_scan_blocks(__global const uint2* in, __global uint2* out, __global uint2* sums, const uint count) {
-    __local uint2 part[RK_SCAN_GROUP];
-    const uint first = (uint)get_group_id(0) * RK_SCAN_BLOCK + (uint)get_local_id(0) * RK_SCAN_PER;
-    const uint last = min(count, first + RK_SCAN_PER);
+/* This item's entries in[first, last) summed into out, exclusive, after the entries of the
+   work-group's items before it (rk_group_scan: the group's total to group_sums[group]). */
+RK_INLINE void rk_scan_items(__global const uint2* in, __global uint2* out, const uint first, const uint last,
+                             __local uint2* part, __global uint2* group_sums) {
     uint2 s = (uint2)(0u, 0u);
     for (uint k = first; k < last; ++k) s += in[k];
-    uint2 acc = rk_group_scan(part, s, sums);
+    uint2 acc = rk_group_scan(part, s, group_sums);
     for (uint k = first; k < last; ++k) {
         const uint2 v = in[k];
         out[k] = acc;
         acc += v;
     }
+}
+
+/* Exclusive sums of uint2 over `count` entries: the blocks, then the block sums (total[0]: all
+   of them), then the blocks' offsets added. */
+__kernel void rk_scan_blocks(__global const uint2* in, __global uint2* out, __global uint2* sums, const uint count) {
+    __local uint2 part[RK_SCAN_GROUP];
+    const uint first = (uint)get_group_id(0) * RK_SCAN_BLOCK + (uint)get_local_id(0) * RK_SCAN_PER;
+    rk_scan_items(in, out, first, min(count, first + RK_SCAN_PER), part, sums);
 }
 __kernel void rk_scan_sums(__global uint2* sums, const uint blocks, __global uint2* total) {
     if (get_global_id(0) == 0) total[0] = rk_serial_scan(sums, blocks);
@@ -212,15 +231,8 @@ __kernel void rk_scan_one_group(__global const uint2* in, __global uint2* out, c
                                 __global uint2* total) {
     __local uint2 part[RK_SCAN_GROUP];
     const uint per = (count + RK_SCAN_GROUP - 1u) / RK_SCAN_GROUP;
-    const uint first = min(count, (uint)get_local_id(0) * per), last = min(count, first + per);
-    uint2 s = (uint2)(0u, 0u);
-    for (uint k = first; k < last; ++k) s += in[k];
-    uint2 acc = rk_group_scan(part, s, total);
-    for (uint k = first; k < last; ++k) {
-        const uint2 v = in[k];
-        out[k] = acc;
-        acc += v;
-    }
+    const uint first = min(count, (uint)get_local_id(0) * per);
+    rk_scan_items(in, out, first, min(count, first + per), part, total);
 }
 __kernel void rk_scan_add(__global uint2* out, __global const uint2* sums, const uint count) {
     const uint k = (uint)get_global_id(0);

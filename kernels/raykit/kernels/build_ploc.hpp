@@ -27,18 +27,8 @@ __kernel void rk_build_morton(__global const float* cen, __global const float* f
                               __global ulong* keys, __global uint* ids) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
-    const float3 lo = vload3(0, fstate), e = vload3(1, fstate) - lo;
-    const float m = e.x < e.y ? (e.y < e.z ? e.z : e.y) : (e.x < e.z ? e.z : e.x);
-    const float scale = m > 0.0f && m < INFINITY ? 2097151.0f / m : 0.0f;
-    const float3 p = rk_sanitized(cen, fstate, i);
-    ulong key = 0ul;
-    for (int a = 0; a < 3; ++a) {
-        float f = ((a == 0 ? p.x : a == 1 ? p.y : p.z) - (a == 0 ? lo.x : a == 1 ? lo.y : lo.z)) * scale;
-        f = f > 0.0f ? f : 0.0f;
-        f = f < 2097151.0f ? f : 2097151.0f;
-        key |= rk_spread21((ulong)f) << (2 - a);
-    }
-    keys[i] = key;
+    const uint3 q = rk_morton_cells(rk_sanitized(cen, fstate, i), fstate, 1.0f, 2097151.0f);
+    keys[i] = rk_spread21(q.x) << 2 | rk_spread21(q.y) << 1 | rk_spread21(q.z);
     ids[i] = i;
 }
 

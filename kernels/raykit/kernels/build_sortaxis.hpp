@@ -22,17 +22,8 @@ RK_INLINE uint rk_spread10(uint x) {
 }
 /* MortonQuantizer::code30 over the centroid bounds in fstate */
 RK_INLINE uint rk_code30(const float3 p, __global const float* fstate) {
-    const float3 lo = vload3(0, fstate), e = vload3(1, fstate) - lo;
-    const float m = e.x < e.y ? (e.y < e.z ? e.z : e.y) : (e.x < e.z ? e.z : e.x);
-    const float scale = (m > 0.0f && m < INFINITY ? 2097151.0f / m : 0.0f) * (1.0f / 2048.0f);
-    uint code = 0u;
-    for (int a = 0; a < 3; ++a) {
-        float f = ((a == 0 ? p.x : a == 1 ? p.y : p.z) - (a == 0 ? lo.x : a == 1 ? lo.y : lo.z)) * scale;
-        f = f > 0.0f ? f : 0.0f;
-        f = f < 1023.0f ? f : 1023.0f;
-        code |= rk_spread10((uint)f) << (2 - a);
-    }
-    return code;
+    const uint3 q = rk_morton_cells(p, fstate, 1.0f / 2048.0f, 1023.0f);
+    return rk_spread10(q.x) << 2 | rk_spread10(q.y) << 1 | rk_spread10(q.z);
 }
 RK_INLINE uint rk_chunks(const uint m) { return max(1u, m / RK_SA_CHUNK); }
 RK_INLINE uint rk_chunk_lo(const uint m, const uint chunks, const uint c) { return (uint)(((ulong)m * c) / chunks); }
