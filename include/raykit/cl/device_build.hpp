@@ -1,29 +1,33 @@
-// raykit/cl/device_build.hpp — building an object's tree on the device (PLOC), no read-back.
+// raykit/cl/device_build.hpp — building an object's tree on the device (PLOC or sort by axis),
+// no read-back.
 //
-//   DeviceBuilder builder(dev);                        // its own program, or share one that holds parts(method)
+//   DeviceBuilder builder(dev, cfg);                   // its own program, or share one that holds parts(method)
 //   DeviceBuildResult r = builder.build(triangles, positions, record, object, target);
-//   if (!r.built) ...                                  // too deep for the device walk: build on the CPU
+//   if (!r.built) ...                                  // too deep or too many rounds: build on the CPU
 //
 // The device makes, from the object's current vertices, the very tree the CPU makes with
-// cpu_twin_build(): PlocBuilder (bvh/ploc.hpp, radius and leaf cost of DeviceBuildConfig, no
-// post-pass) collapsed by BlockBvh8::build and put in the device's form by device_tree() —
-// the same wide nodes, slot boxes and triangle blocks bit for bit; only the numbering of
-// wide nodes and blocks differs (descending merge id and left-to-right leaf order here, the
-// CPU's stack order there). The stages are in kernels/raykit/kernels/build.hpp (shared, back
-// end), build_ploc.hpp and build_sortaxis.hpp (the builders).
+// cpu_twin_build(): PlocBuilder (radius of DeviceBuildConfig, no post-pass) or SortAxisBuilder
+// (its default: Morton axis, area metric, mutual pairing, window of DeviceBuildConfig), with
+// the leaf cost of DeviceBuildConfig, collapsed by BlockBvh8::build and put in the device's
+// form by device_tree() — the same wide nodes, slot boxes and triangle blocks bit for bit; only
+// the numbering of wide nodes and blocks differs (descending merge id and left-to-right leaf
+// order here, the CPU's stack order there). The stages are in kernels/raykit/kernels/build.hpp
+// (shared, back end), build_ploc.hpp and build_sortaxis.hpp (the builders; a program holds the
+// one it uses).
 //
 // The nodes and blocks go straight into the scene's arrays at the object's offsets, with the
 // refit tables of the new topology (RefitPlan's parents, needs and one-pass starts), so the
 // next refit and trace use the new tree and nothing crosses back. The host only reads small
-// counters: the cluster count every few rounds of PLOC (to know when it is done), and at the
-// end the height, node and block counts (32 bytes).
+// counters: the element count after each round or level (to size the next and know when it is
+// done), the number of nodes on each wide level, and at the end the height, node and block
+// counts (32 bytes).
 //
 // Space: the object's regions hold any tree over its triangles (n + 1 nodes, n blocks), see
 // node_capacity() / block_capacity(). When the merge tree would be deeper than
 // RAYKIT_BVH_MAX_DEPTH (the CPU's back end then rebuilds the deep part with median splits,
-// bvh/bottom_up.hpp) or PLOC takes more than kMaxRounds rounds (chains of coincident
-// primitives, which the CPU finishes incrementally), build() returns built = false and
-// writes nothing: the caller builds that one on the CPU (DeviceScene does).
+// bvh/bottom_up.hpp) or the builder takes more than kMaxRounds rounds or levels (PLOC on
+// chains of coincident primitives, which the CPU finishes incrementally), build() returns
+// built = false and writes nothing: the caller builds that one on the CPU (DeviceScene does).
 #pragma once
 
 #include <bit>
@@ -112,14 +116,14 @@ struct DeviceBuildResult {
     bool built = false;        ///< false: nothing written, build this one on the CPU (see the header comment)
     std::uint32_t nodes = 0;   ///< wide nodes written (node 0, the root box, included)
     std::uint32_t blocks = 0;  ///< triangle blocks written
-    std::uint32_t rounds = 0;  ///< PLOC rounds
+    std::uint32_t rounds = 0;  ///< PLOC rounds or sort-by-axis levels
     std::uint32_t height = 0;  ///< height of the merge tree
 };
 
 class DeviceBuilder {
 public:
-    /// PLOC rounds after which the build gives up (built = false); measured: 36 on the
-    /// Stanford bunny, 51 on the thesis scene.
+    /// Rounds (PLOC) or levels (sort by axis) after which the build gives up (built = false);
+    /// measured: 36 / 31 on the Stanford bunny, 51 / 45 on the thesis scene.
     static constexpr std::uint32_t kMaxRounds = 256;
 
     /// Nodes and blocks an object of n triangles may need (its regions in the scene's arrays).
