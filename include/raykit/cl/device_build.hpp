@@ -203,10 +203,10 @@ public:
         }
         std::uint32_t st[8] = {};
         int cur = 0;
+        bases_.assign(1, 0u);  // one triangle: no round, no rk_tree_down
         if (n > 1) {
             // one round (PLOC) or level (sort by axis) per launch set, sized by the element
             // count read after the previous one
-            bases_.assign(1, 0u);  // (n == 1 launches no rk_tree_down)
             for (std::uint32_t m = n; m > 1; cur ^= 1) {
                 if (sortaxis) level(m, n, cur);
                 else round(m, n, cur);
@@ -232,7 +232,7 @@ public:
         }
         go(k(Top), 1, icnt_, n, first_, leaf_);
         for (std::size_t r = bases_.size(); r-- > 1;)
-            if (n > 1) go(k(Down), bases_[r] - bases_[r - 1], kids_, icnt_, n, bases_[r - 1], bases_[r], first_, leaf_);
+            go(k(Down), bases_[r] - bases_[r - 1], kids_, icnt_, n, bases_[r - 1], bases_[r], first_, leaf_);
         go(k(Slots), n, first_, leaf_, n, prims_, leaf_of_, bflag_);
         scan(bflag_, bpos_, n);
         const std::uint32_t cap = static_cast<std::uint32_t>(node_capacity(n) - 1);

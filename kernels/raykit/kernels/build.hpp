@@ -380,6 +380,16 @@ __kernel void rk_tree_blocks(__global const uint* prims, __global const uint2* l
     }
 }
 
+/* The real box of merge-tree node x (a primitive's, or an inner node's from rk_tree_up). */
+RK_INLINE rk_box rk_node_box(__global const float* rbox, __global const float* ibox, const uint n, const uint x) {
+    if (x < n) return rk_load_box(rbox, x);
+    rk_box b;
+    const uint q = x - n;
+    b.lo = (float3)(ibox[6 * q], ibox[6 * q + 1], ibox[6 * q + 2]);
+    b.hi = (float3)(ibox[6 * q + 3], ibox[6 * q + 4], ibox[6 * q + 5]);
+    return b;
+}
+
 /* The slots of the wide node that starts at inner node v (WideBvhT::build_nodes): open the
    inner child of largest area (first one on ties) until RK_WIDTH; left replaces the parent,
    right goes after it. Returns the slot count. */
@@ -393,11 +403,7 @@ RK_INLINE int rk_expand(const uint v, __global const uint2* kids, __global const
         float best_area = -1.0f;
         for (int i = 0; i < k; ++i) {
             if (rk_out_of(icnt, n, slot[i]) == 1u) continue;
-            const uint q = slot[i] - n;
-            rk_box b;
-            b.lo = (float3)(ibox[6 * q], ibox[6 * q + 1], ibox[6 * q + 2]);
-            b.hi = (float3)(ibox[6 * q + 3], ibox[6 * q + 4], ibox[6 * q + 5]);
-            const float a = rk_box_half_area(b);
+            const float a = rk_box_half_area(rk_node_box(rbox, ibox, n, slot[i]));
             if (best < 0 || a > best_area) {
                 best = i;
                 best_area = a;
@@ -456,15 +462,6 @@ RK_INLINE void rk_slot_set(__global rk_wnode* w, const int c, const rk_box b, co
     w->index[c] = index;
     w->count[c] = count;
 }
-RK_INLINE rk_box rk_node_box(__global const float* rbox, __global const float* ibox, const uint n, const uint x) {
-    if (x < n) return rk_load_box(rbox, x);
-    rk_box b;
-    const uint q = x - n;
-    b.lo = (float3)(ibox[6 * q], ibox[6 * q + 1], ibox[6 * q + 2]);
-    b.hi = (float3)(ibox[6 * q + 3], ibox[6 * q + 4], ibox[6 * q + 5]);
-    return b;
-}
-
 /* Wide nodes: node 0 (the root box alone, inner child 1), then wide node w at 1 + w. One
    item per flag index; item 0 also writes node 0 and, for a one-leaf tree, node 1. Refit
    tables of the object's node range [node_offset, node_offset + cap): parents (global), needs
