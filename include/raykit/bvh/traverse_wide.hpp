@@ -148,13 +148,13 @@ struct WideSlabRay {
     }
 };
 
+/// The walk below the entry (index, count) of a non-empty tree — a wide node (count 0) or a
+/// leaf's slots — whose box the ray `wr` enters. traverse() starts it at the root; a packet walk
+/// starts it at the node where its packet has thinned out (bvh/traverse_packet.hpp).
 template <class Mode = ClosestHit, int W, class LeafFn, class Stats = std::nullptr_t>
-RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
-    if (bvh.nodes.empty()) return false;
+RAYKIT_INLINE bool traverse_from(const WideBvhT<W>& bvh, const WideSlabRay& wr, const Ray& ray, float& tmax,
+                                 std::uint32_t index, std::uint32_t count, LeafFn&& leaf, Stats stats = nullptr) {
     const WideNodeT<W>* RAYKIT_RESTRICT nodes = bvh.nodes.data();
-    const WideSlabRay wr(ray);
-    if (!wr.test_box(bvh.bounds, ray.tmin, tmax)) return false;  // the binary traversal's first test
-
     struct Entry {
         std::uint32_t index, count;  // count 0: a wide node; else a leaf's prim_ids range
         float t;
@@ -162,7 +162,7 @@ RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax,
     constexpr int kStack = (W - 1) * RAYKIT_BVH_MAX_DEPTH + 1;
     Entry stack[std::size_t(kStack)];
     int sp = 0;
-    Entry cur{0, 0, 0.0f};
+    Entry cur{index, count, 0.0f};
     bool found = false;
     for (;;) {
         if (cur.count == 0) {
@@ -247,6 +247,14 @@ RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax,
             }
         }
     }
+}
+
+template <class Mode = ClosestHit, int W, class LeafFn, class Stats = std::nullptr_t>
+RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
+    if (bvh.nodes.empty()) return false;
+    const WideSlabRay wr(ray);
+    if (!wr.test_box(bvh.bounds, ray.tmin, tmax)) return false;  // the binary traversal's first test
+    return RAYKIT_ISA_NS::traverse_from<Mode>(bvh, wr, ray, tmax, 0, 0, leaf, stats);
 }
 
 }  // namespace raykit::RAYKIT_ISA_NS
