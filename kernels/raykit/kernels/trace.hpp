@@ -199,6 +199,110 @@ RK_INLINE bool rk_leaf(const rk_wt_ray* w, __global const rk_block* restrict blo
     return found;
 }
 
+/* rk_object_walk's result bits: a hit was found (closest: *best improved), the walk stopped
+   on a tree deeper than its stack. */
+#define RK_WALK_HIT 1
+#define RK_WALK_ABORT 2
+
+/* One object's walk (raykit::traverse_from over a WideBvhT) for ray s / w from entry (start,
+   start_count) — node 0, which holds the root box alone, for a whole walk; a wide node whose
+   box the ray enters, for a packet walk that has thinned out (trace_packet.hpp). Closest hits
+   improve *best and *tmax in place; any hit returns at the first. Entered children nearest
+   first (ties in slot order), the others pushed far to near; any hit pushes them in slot order. */
+RK_INLINE int rk_object_walk(const rk_slab_ray* s, const rk_wt_ray* w, __global const rk_wnode* restrict nodes,
+                             __global const rk_block* restrict blocks, const uint start, const uint start_count,
+                             const float tmin, float* tmax, const int any, const uint inst, const uint object,
+                             const rk_object* ob, rk_hit* best, const rk_filter* f, uint* steps) {
+    uint ws_index[RK_WSTACK], ws_count[RK_WSTACK];  /* the object's entries */
+    float ws_t[RK_WSTACK];
+    int found = 0;
+    uint cidx = start, ccnt = start_count;
+    int wsp = 0;
+    for (;;) {
+        if (ccnt == 0u) {
+            __global const rk_wnode* n = nodes + cidx;
+            if (steps && cidx != 0u) ++*steps;
+            float td[RK_WIDTH];
+            uint mask = rk_wslab(s, n, *tmax, td);
+            if (mask) {
+                if (wsp + RK_WIDTH - 1 > RK_WSTACK) return found | RK_WALK_ABORT;
+                int i = rk_lowest_bit(mask);
+                mask &= mask - 1u;
+                if (any) {
+                    cidx = n->index[i];
+                    ccnt = n->count[i];
+                    while (mask) {
+                        i = rk_lowest_bit(mask);
+                        mask &= mask - 1u;
+                        ws_index[wsp] = n->index[i];
+                        ws_count[wsp] = n->count[i];
+                        ws_t[wsp] = td[i];
+                        ++wsp;
+                    }
+                    continue;
+                }
+                if (!mask) {  /* one child: no sorting */
+                    cidx = n->index[i];
+                    ccnt = n->count[i];
+                    continue;
+                }
+                if (!(mask & (mask - 1u))) {  /* two: the nearer (ties: the first slot) */
+                    const int i1 = rk_lowest_bit(mask);
+                    const bool swap = td[i1] < td[i];
+                    const int a = swap ? i1 : i, c = swap ? i : i1;
+                    ws_index[wsp] = n->index[c];
+                    ws_count[wsp] = n->count[c];
+                    ws_t[wsp] = td[c];
+                    ++wsp;
+                    cidx = n->index[a];
+                    ccnt = n->count[a];
+                    continue;
+                }
+                int e[RK_WIDTH];
+                int k = 1;
+                e[0] = i;
+                while (mask) {  /* three or more: insertion sort by entry distance, stable */
+                    i = rk_lowest_bit(mask);
+                    mask &= mask - 1u;
+                    int j = k++;
+                    while (j > 0 && td[e[j - 1]] > td[i]) {
+                        e[j] = e[j - 1];
+                        --j;
+                    }
+                    e[j] = i;
+                }
+                for (int j = k - 1; j >= 1; --j) {
+                    ws_index[wsp] = n->index[e[j]];
+                    ws_count[wsp] = n->count[e[j]];
+                    ws_t[wsp] = td[e[j]];
+                    ++wsp;
+                }
+                cidx = n->index[e[0]];
+                ccnt = n->count[e[0]];
+                continue;
+            }
+        } else {
+            if (steps) ++*steps;
+            if (rk_leaf(w, blocks, cidx, ccnt, tmin, tmax, any, inst, object, ob, best, f)) {
+                if (any) return RK_WALK_HIT;
+                found = RK_WALK_HIT;
+            }
+        }
+        /* the next entry still in front of tmax */
+        bool next = false;
+        while (wsp > 0) {
+            --wsp;
+            if (ws_t[wsp] <= *tmax * RK_SLAB_EXIT_SCALE) {
+                cidx = ws_index[wsp];
+                ccnt = ws_count[wsp];
+                next = true;
+                break;
+            }
+        }
+        if (!next) return found;
+    }
+}
+
 /* Closest hit (any == 0: *best improved in place, inst set; true when it was)
    or any hit (any != 0: true when something blocks) of `r` in [r->tmin, r->tmax]. */
 RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hit* best, const rk_filter* f,
@@ -207,8 +311,6 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
     float tmax = r->tmax;
     uint st_node[RK_MAX_DEPTH];  /* the top level's entries */
     float st_t[RK_MAX_DEPTH];
-    uint ws_index[RK_WSTACK], ws_count[RK_WSTACK];  /* the current object's entries */
-    float ws_t[RK_WSTACK];
     int sp = 0;
     uint tcur = 0;              /* top-level node */
     uint leaf_k = 0, leaf_end = sc->mesh ? 1u : 0u;  /* instances of the top-level leaf still to walk */
@@ -240,94 +342,12 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
             __global const rk_block* restrict blocks = sc->blocks + ob.block_offset;
             const rk_slab_ray s = mapped ? rk_slab_prepare(o.org, o.dir, o.tmin) : top_s;
             const rk_wt_ray w = rk_wt_prepare(o.org, o.dir);
-            /* raykit::traverse over a WideBvhT: node 0 holds the root box alone (its test is the
-               CPU's test of WideBvhT::bounds, not counted); entered children nearest first (ties
-               in slot order), the others pushed far to near; any hit pushes them in slot order. */
-            uint cidx = 0u, ccnt = 0u;
-            int wsp = 0;
-            for (;;) {
-                if (ccnt == 0u) {
-                    __global const rk_wnode* n = nodes + cidx;
-                    if (steps && cidx != 0u) ++*steps;
-                    float td[RK_WIDTH];
-                    uint mask = rk_wslab(&s, n, tmax, td);
-                    if (mask) {
-                        if (wsp + RK_WIDTH - 1 > RK_WSTACK) return found;
-                        int i = rk_lowest_bit(mask);
-                        mask &= mask - 1u;
-                        if (any) {
-                            cidx = n->index[i];
-                            ccnt = n->count[i];
-                            while (mask) {
-                                i = rk_lowest_bit(mask);
-                                mask &= mask - 1u;
-                                ws_index[wsp] = n->index[i];
-                                ws_count[wsp] = n->count[i];
-                                ws_t[wsp] = td[i];
-                                ++wsp;
-                            }
-                            continue;
-                        }
-                        if (!mask) {  /* one child: no sorting */
-                            cidx = n->index[i];
-                            ccnt = n->count[i];
-                            continue;
-                        }
-                        if (!(mask & (mask - 1u))) {  /* two: the nearer (ties: the first slot) */
-                            const int i1 = rk_lowest_bit(mask);
-                            const bool swap = td[i1] < td[i];
-                            const int a = swap ? i1 : i, c = swap ? i : i1;
-                            ws_index[wsp] = n->index[c];
-                            ws_count[wsp] = n->count[c];
-                            ws_t[wsp] = td[c];
-                            ++wsp;
-                            cidx = n->index[a];
-                            ccnt = n->count[a];
-                            continue;
-                        }
-                        int e[RK_WIDTH];
-                        int k = 1;
-                        e[0] = i;
-                        while (mask) {  /* three or more: insertion sort by entry distance, stable */
-                            i = rk_lowest_bit(mask);
-                            mask &= mask - 1u;
-                            int j = k++;
-                            while (j > 0 && td[e[j - 1]] > td[i]) {
-                                e[j] = e[j - 1];
-                                --j;
-                            }
-                            e[j] = i;
-                        }
-                        for (int j = k - 1; j >= 1; --j) {
-                            ws_index[wsp] = n->index[e[j]];
-                            ws_count[wsp] = n->count[e[j]];
-                            ws_t[wsp] = td[e[j]];
-                            ++wsp;
-                        }
-                        cidx = n->index[e[0]];
-                        ccnt = n->count[e[0]];
-                        continue;
-                    }
-                } else {
-                    if (steps) ++*steps;
-                    if (rk_leaf(&w, blocks, cidx, ccnt, r->tmin, &tmax, any, inst, object, &ob, best, f)) {
-                        if (any) return true;
-                        found = true;
-                    }
-                }
-                /* the next entry still in front of tmax */
-                bool next = false;
-                while (wsp > 0) {
-                    --wsp;
-                    if (ws_t[wsp] <= tmax * RK_SLAB_EXIT_SCALE) {
-                        cidx = ws_index[wsp];
-                        ccnt = ws_count[wsp];
-                        next = true;
-                        break;
-                    }
-                }
-                if (!next) break;
+            const int res = rk_object_walk(&s, &w, nodes, blocks, 0u, 0u, r->tmin, &tmax, any, inst, object, &ob, best, f, steps);
+            if (res & RK_WALK_HIT) {
+                if (any) return true;
+                found = true;
             }
+            if (res & RK_WALK_ABORT) return found;
             continue;
         }
         if (sc->mesh) return found;

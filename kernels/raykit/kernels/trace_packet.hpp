@@ -11,7 +11,9 @@
 // (t, instance, triangle) over the triangles a ray tests in boxes it enters, whatever the
 // visiting order, and a box that holds a closer hit is entered by the same per-lane arithmetic
 // (z, y, x axis order, NaN candidates never deciding, the exit widened once). Children are
-// entered nearest first by the first active lane's entry distance.
+// entered nearest first by the first active lane's entry distance. Below a node reached by
+// RK_PACKET_SWITCH (3) active lanes or fewer, each lane walks alone (rk_object_walk, the
+// single-ray walk from that node), which changes no answer by the same argument.
 //
 // Why a second walk on CPU devices only: PoCL runs a work-group's work-items one after another
 // on a core, so a single-ray walk per work-item is scalar code plus one 8-wide box test; a
@@ -33,8 +35,8 @@
 // rk_dr_closest_packet / rk_dr_shadow_packet are in shade.hpp.
 //
 // Expects RK_PACKET == 16 and the parts before it: kernels/raykit/kernels/common.hpp
-// (rk_wt_prepare, RK_SLAB_EXIT_SCALE) and trace.hpp (rk_scene, rk_walk, rk_leaf, rk_object_ray,
-// rk_hit, rk_lowest_bit, RK_WSTACK).
+// (rk_wt_prepare, rk_slab_prepare, RK_SLAB_EXIT_SCALE) and trace.hpp (rk_scene, rk_walk,
+// rk_object_walk, rk_leaf, rk_object_ray, rk_hit, rk_lowest_bit, RK_WSTACK).
 #pragma once
 
 namespace raykit::kernels {
@@ -43,6 +45,10 @@ inline constexpr const char* kTracePacket = R"CLC(
 #if RK_PACKET != 16
 #error "RK_PACKET must be 16"
 #endif
+
+/* A packet reaching a wide node with this many active lanes or fewer walks on ray by ray below
+   it (rk_object_walk from that node), as the CPU's traverse_packet does (kPacketSwitchLanes). */
+#define RK_PACKET_SWITCH 3
 
 /* One bit per lane of a vector comparison (lanes -1 or 0). */
 RK_INLINE uint rk_lane_bits(const int16 m) {
@@ -114,7 +120,19 @@ RK_INLINE uint rk_packet_walk(const rk_packet* pk, const rk_wt_ray* w, __global 
     uint finished = 0u;
     uint cidx = 0u, ccnt = 0u, cmask = lanes;  /* node 0: the root box alone, as rk_walk starts */
     for (;;) {
-        if (ccnt == 0u) {
+        if (ccnt == 0u && popcount(cmask) <= RK_PACKET_SWITCH) {
+            for (uint lm = cmask; lm; lm &= lm - 1u) {  /* each lane alone below this node */
+                const int l = rk_lowest_bit(lm);
+                const rk_slab_ray s = rk_slab_prepare(o[l].org, o[l].dir, o[l].tmin);
+                if ((rk_object_walk(&s, w + l, nodes, blocks, cidx, 0u, o[l].tmin, tm + l, any, inst, object, ob,
+                                    best + l, f, 0) & RK_WALK_HIT) && any)
+                    finished |= 1u << l;
+            }
+            if (any) {
+                lanes &= ~finished;
+                if (!lanes) return finished;
+            }
+        } else if (ccnt == 0u) {
             __global const rk_wnode* n = nodes + cidx;
             const int lead = rk_lowest_bit(cmask);
             float key[RK_WIDTH];
