@@ -20,10 +20,12 @@ static_assert(RAYKIT_BVH_MAX_DEPTH >= 40, "RAYKIT_BVH_MAX_DEPTH must be at least
 #if defined(__GNUC__) || defined(__clang__)
 #define RAYKIT_INLINE inline __attribute__((always_inline))
 #define RAYKIT_LAMBDA_INLINE __attribute__((always_inline))
+#define RAYKIT_NOINLINE __attribute__((noinline))
 #define RAYKIT_RESTRICT __restrict__
 #else
 #define RAYKIT_INLINE inline
 #define RAYKIT_LAMBDA_INLINE
+#define RAYKIT_NOINLINE
 #define RAYKIT_RESTRICT
 #endif
 
