@@ -13,6 +13,8 @@
 //              image, one ray through each pixel centre, row-major. The bounding
 //              sphere (radius |diag|/2) subtends 19.5 degrees < 22.5, so the whole
 //              object is in frame. Directions are normalized; tmin = 0, tmax = inf.
+//   "tiles"    the same camera rays in 4x4-pixel tiles (the renderer's order): a batch's
+//              16 consecutive rays, and Embree's rtcIntersect16 packets, are one tile.
 //   "random"   origins uniform in the bbox, directions uniform on the unit sphere
 //              (std::mt19937_64, fixed seed per scene), tmin = 0, tmax = inf:
 //              incoherent rays from anywhere in the box (43% hit the bunny, 60% the torus).
@@ -63,7 +65,7 @@ inline const std::vector<std::string>& scene_names() {
     return names;
 }
 inline const std::vector<std::string>& ray_set_names() {
-    static const std::vector<std::string> names{"primary", "random"};
+    static const std::vector<std::string> names{"primary", "tiles", "random"};
     return names;
 }
 
@@ -168,7 +170,21 @@ inline std::vector<raykit::Ray> make_random_rays(const raykit::AABB& box, std::u
     return rays;
 }
 
-/// Ray set `set` ("primary" or "random") for scene `s`, made once.
+/// The camera rays of make_primary_rays in 4×4-pixel tiles (tile after tile, each row by row):
+/// the renderer's order, in which a batch's 16 consecutive rays are one tile (render_cpu.hpp);
+/// "primary" keeps rows, where 16 consecutive rays are a 16 × 1 strip.
+inline std::vector<raykit::Ray> make_tile_rays(const raykit::AABB& box) {
+    const std::vector<raykit::Ray> rows = make_primary_rays(box);
+    std::vector<raykit::Ray> rays;
+    rays.reserve(rows.size());
+    for (std::size_t ty = 0; ty < kImageSize; ty += 4)
+        for (std::size_t tx = 0; tx < kImageSize; tx += 4)
+            for (std::size_t y = ty; y < ty + 4; ++y)
+                for (std::size_t x = tx; x < tx + 4; ++x) rays.push_back(rows[y * kImageSize + x]);
+    return rays;
+}
+
+/// Ray set `set` ("primary", "tiles" or "random") for scene `s`, made once.
 inline const std::vector<raykit::Ray>& rays(const Scene& s, const std::string& set) {
     static std::map<std::pair<std::string, std::string>, std::unique_ptr<std::vector<raykit::Ray>>> cache;
     std::lock_guard lock(detail::cache_mutex());
@@ -176,6 +192,8 @@ inline const std::vector<raykit::Ray>& rays(const Scene& s, const std::string& s
     if (!slot) {
         if (set == "primary") {
             slot = std::make_unique<std::vector<raykit::Ray>>(make_primary_rays(s.bounds));
+        } else if (set == "tiles") {
+            slot = std::make_unique<std::vector<raykit::Ray>>(make_tile_rays(s.bounds));
         } else if (set == "random") {
             std::uint64_t seed = 0x9E3779B97F4A7C15ull;
             for (char ch : s.name) seed = seed * 1099511628211ull + static_cast<unsigned char>(ch);
