@@ -27,12 +27,14 @@
 // Thinning out: a packet reaching a wide node with kPacketSwitchLanes active rays or fewer walks
 // on below it ray by ray (traverse_from, the single-ray walk from that node), as Embree's hybrid
 // packet walks do. It changes no answer, by the argument above: every ray still tests the
-// triangles of the leaves its own box tests enter. Measured (bench_trace camera rays, 16-ray
-// rows, 1 thread): bunny closest 6.9 -> 6.5 ms, 1M torus any 14.9-16.9 -> 11.9-14.0 ms; a switch
-// at 3 lanes was fastest on the bunny and the 100k torus, 7 (Embree's for 16 lanes) on the 1M torus.
+// triangles of the leaves its own box tests enter. Measured against the walk without it
+// (bench_trace camera rays in rows of 16, 1 thread, interleaved): 1M torus closest 20.3-20.8 ->
+// 18.7 ms, any 19.3-19.6 -> 16.3-16.5 ms, bunny and 100k torus 2-4 % faster; a switch at 3 lanes
+// was fastest on the bunny and the 100k torus, 7 (Embree's for 16 lanes) on the 1M torus.
 // Tried and dropped: Embree's leaf test of one triangle against all 16 rays (permuted per lane to
-// each ray's shear axes, bit-identical): no faster where packets reach leaves with 6 or more
-// rays (bunny closest 6.14-6.20 ms without it, 6.29-6.51 with it), slower from 4.
+// each ray's shear axes, bit-identical): on rows no faster where packets reach leaves with 6 or
+// more rays (bunny closest 6.14-6.20 ms without it, 6.29-6.51 with it), slower from 4; on 4x4
+// tiles, where Embree's packets gain most, it is not yet measured in a quiet run.
 //
 // Stack: as the single-ray walk, at most W − 1 entries per wide level.
 //
