@@ -2,6 +2,11 @@
 // source file of a test program (it defines __lsan_default_options).
 #pragma once
 
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <mutex>
 #include <string>
 
 #include "raykit/cl.hpp"
@@ -33,5 +38,25 @@ inline raykit::cl::Device* test_device(std::string* why) {
     if (why) *why = reason;
     return dev;
 }
+
+/// With RAYKIT_TEST_CL_SOURCES naming a folder, the program writes the text and options of
+/// every OpenCL program it built there when it ends, one file each ("// options: ..." first);
+/// tests/cl_programs_check.cmake compiles them with clang's OpenCL C front ends.
+struct ProgramSourceDump {
+    ~ProgramSourceDump() {
+        const char* dir = std::getenv("RAYKIT_TEST_CL_SOURCES");
+        if (!dir || !*dir) return;
+        auto& c = raykit::cl::detail::program_cache();
+        std::lock_guard lock(c.m);
+        for (const auto& entry : c.programs) {
+            const std::string& options = std::get<2>(entry.first);
+            const std::string& source = std::get<3>(entry.first);
+            char name[32];
+            std::snprintf(name, sizeof name, "%016zx.cl", std::hash<std::string>{}(options + '\n' + source));
+            std::ofstream(std::string(dir) + "/" + name) << "// options: " << options << "\n" << source;
+        }
+    }
+};
+inline ProgramSourceDump program_source_dump;
 
 }  // namespace raykit::test

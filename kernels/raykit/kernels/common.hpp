@@ -58,7 +58,7 @@ typedef struct {
     float tmin;
 } rk_slab_ray;
 
-RK_INLINE rk_slab_ray rk_slab_prepare(const float org[3], const float dir[3], float tmin) {
+RK_INLINE rk_slab_ray rk_slab_prepare(const float* org, const float* dir, float tmin) {
     rk_slab_ray s;
     for (int a = 0; a < 3; ++a) {
         s.org[a] = org[a];
@@ -135,7 +135,7 @@ typedef struct {
     float sx, sy, sz;
 } rk_wt_ray;
 
-RK_INLINE rk_wt_ray rk_wt_prepare(const float org[3], const float dir[3]) {
+RK_INLINE rk_wt_ray rk_wt_prepare(const float* org, const float* dir) {
     rk_wt_ray d;
     for (int a = 0; a < 3; ++a) d.org[a] = org[a];
     const float ax = fabs(dir[0]), ay = fabs(dir[1]), az = fabs(dir[2]);

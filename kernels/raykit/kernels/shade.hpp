@@ -389,7 +389,7 @@ typedef struct {
     uint exclusive;                   /* no other ray of this launch adds to this pixel: plain adds */
 } rk_ctx;
 
-RK_INLINE float3 rk_f3(const float a[3]) { return (float3)(a[0], a[1], a[2]); }
+RK_INLINE float3 rk_f3(const float* a) { return (float3)(a[0], a[1], a[2]); }
 RK_INLINE float3 rk_g3(__global const float* a) { return (float3)(a[0], a[1], a[2]); }
 RK_INLINE float rk_max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
 

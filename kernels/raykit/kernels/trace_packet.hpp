@@ -96,7 +96,7 @@ RK_INLINE uint rk_packet_child(const rk_packet* p, const float* tm, __global con
 
 
 /* The octant of a direction: bit a set when component a's sign bit is. */
-RK_INLINE int rk_octant(const float dir[3]) {
+RK_INLINE int rk_octant(const float* dir) {
     return (signbit(dir[0]) ? 1 : 0) | (signbit(dir[1]) ? 2 : 0) | (signbit(dir[2]) ? 4 : 0);
 }
 
