@@ -266,6 +266,24 @@ TEST(ClProgram, BuildErrorPointsAtTheHookLine) {
     }
 }
 
+// NVIDIA's OpenCL compiler (CUDA 13, H200) ignores #line and reports "<kernel>:935:13"; the log
+// must still name the hook and its line. No device needed: the log below is NVIDIA's form.
+TEST(ClProgram, LogLinesOfTheWholeTextAreNamedByPart) {
+    const std::string src = rcl::assemble({{"raykit/kernels/a", "int a;\nint b;\n"}, {"<hook broken>", "x\ny\nz\n"}});
+    // physical lines: 1 #line a, 2 int a, 3 int b, 4 #line hook, 5 x, 6 y, 7 z
+    const std::string log = "<kernel>:6:13: error: expected ';'\n    y\n<kernel>:2:1: note: here\n"
+                            "<hook broken>:1:2: warning: kept\n<kernel>:99:1: error: past the end\n"
+                            "  <kernel>:7:4: note: indented\nno location: 6:1: here\n";
+    const std::string got = rcl::detail::locate_in_parts(src, log);
+    EXPECT_EQ(got,
+              "<hook broken>:2:13: error: expected ';'\n    y\nraykit/kernels/a:1:1: note: here\n"
+              "<hook broken>:1:2: warning: kept\n<kernel>:99:1: error: past the end\n"
+              "  <hook broken>:3:4: note: indented\nno location: 6:1: here\n");
+    // a log whose locations already name parts (PoCL's) is returned unchanged
+    const std::string pocl = "<hook broken>:3:13: error: expected ';' after return statement\n";
+    EXPECT_EQ(rcl::detail::locate_in_parts(src, pocl), pocl);
+}
+
 // ---------------------------------------------------------------- 2. layouts
 
 TEST(ClLayout, DeviceAgreesWithHost) {

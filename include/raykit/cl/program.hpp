@@ -8,7 +8,8 @@
 // A program is assembled from named parts (kernel headers under
 // kernels/raykit/kernels/, hook sources): each part is preceded by
 // `#line 1 "NAME"`, so a compiler message about a part names that part and
-// the line within it ("<hook wave>:3:12: error: ...").
+// the line within it ("<hook wave>:3:12: error: ..."). A compiler that ignores #line
+// (NVIDIA's) reports lines of the whole text; a failed build's log is mapped back to parts.
 //
 // build_program() caches built programs for the life of the process, keyed
 // by (source, options, device, context): every pipeline, test and benchmark
@@ -29,7 +30,9 @@
 #include <mutex>
 #include <span>
 #include <string>
+#include <string_view>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "raykit/cl/device.hpp"
@@ -63,6 +66,59 @@ inline std::string assemble(std::span<const SourcePart> parts) {
 inline std::string assemble(std::initializer_list<SourcePart> parts) {
     return assemble(std::span<const SourcePart>(parts.begin(), parts.size()));
 }
+
+namespace detail {
+/// The build log with its locations in parts: NVIDIA's compiler (CUDA 13's OpenCL) ignores
+/// `#line` and reports lines of the whole text ("<kernel>:935:13: error: ..."), so a
+/// location at the start of a log line whose file is no part's name, and whose line lies
+/// inside a part, becomes "NAME:LINE" of that part. Locations already in parts stay as they are.
+inline std::string locate_in_parts(const std::string& source, const std::string& log) {
+    std::vector<std::pair<std::size_t, std::string>> starts;  // (line of the #line directive, name)
+    std::size_t line = 1, total = 1;
+    for (std::size_t i = 0; i < source.size(); ++line) {
+        std::size_t e = source.find('\n', i);
+        if (e == std::string::npos) e = source.size();
+        const std::string_view l(source.data() + i, e - i);
+        if (l.starts_with("#line 1 \"") && l.size() > 10 && l.back() == '"')
+            starts.emplace_back(line, std::string(l.substr(9, l.size() - 10)));
+        i = e + 1;
+        total = line;
+    }
+    const auto is_part = [&](std::string_view f) {
+        for (const auto& s : starts)
+            if (s.second == f) return true;
+        return false;
+    };
+    std::string out;
+    out.reserve(log.size() + 256);
+    for (std::size_t i = 0; i < log.size();) {
+        std::size_t e = log.find('\n', i);
+        e = e == std::string::npos ? log.size() : e + 1;
+        const std::string_view l(log.data() + i, e - i);
+        const std::size_t f0 = l.find_first_not_of(' ');
+        const std::size_t c1 = f0 == std::string_view::npos ? f0 : l.find(':', f0);
+        std::size_t d = c1 == std::string_view::npos ? c1 : c1 + 1;
+        while (d != std::string_view::npos && d < l.size() && l[d] >= '0' && l[d] <= '9') ++d;
+        bool done = false;
+        if (c1 != std::string_view::npos && d > c1 + 1 && d - c1 - 1 <= 9 && d < l.size() && l[d] == ':' &&
+            l.substr(f0, c1 - f0).find(' ') == std::string_view::npos && !is_part(l.substr(f0, c1 - f0))) {
+            const std::size_t at = std::stoul(std::string(l.substr(c1 + 1, d - c1 - 1)));
+            const std::pair<std::size_t, std::string>* part = nullptr;
+            for (const auto& s : starts)
+                if (s.first < at) part = &s;
+            if (part && at <= total) {
+                out.append(l.substr(0, f0));
+                out += part->second + ":" + std::to_string(at - part->first);
+                out.append(l.substr(d));
+                done = true;
+            }
+        }
+        if (!done) out.append(l);
+        i = e;
+    }
+    return out;
+}
+}  // namespace detail
 
 /// A built program (a cheap handle; copies share the OpenCL object).
 class Program {
@@ -141,7 +197,7 @@ inline Program build_program(Device& dev, const std::string& source, const std::
     cl_int lerr = CL_SUCCESS;
     std::string log = detail::trim(prog.getBuildInfo<CL_PROGRAM_BUILD_LOG>(dev.handle(), &lerr));
     if (lerr != CL_SUCCESS) log = std::string("(no build log: ") + error_name(lerr) + ")";
-    if (berr != CL_SUCCESS) throw BuildError("clBuildProgram", berr, log);
+    if (berr != CL_SUCCESS) throw BuildError("clBuildProgram", berr, detail::locate_in_parts(source, log));
     ++c.stats.builds;
     c.stats.build_ms += ms;
     Program p(prog, ms, false, log);
