@@ -207,10 +207,13 @@ inline Program build_program(Device& dev, const std::string& source, const std::
 
 /// Options every raykit kernel program is built with on `dev`: correctly
 /// rounded float division and sqrt where the device offers it (so 1/d and
-/// the camera and triangle tests round like the CPU), nothing relaxed.
+/// the camera and triangle tests round like the CPU), nothing relaxed; on
+/// NVIDIA's platform, RK_NV_PTX.
 inline std::string raykit_build_options(const Device& dev) {
     std::string o;
     if (dev.info().correctly_rounded_divide_sqrt) o += "-cl-fp32-correctly-rounded-divide-sqrt";
+    // NVIDIA's mem_fence is a work-group fence; RK_NV_PTX makes RK_GLOBAL_FENCE membar.gl (kernels/common.hpp)
+    if (dev.info().platform_name.find("NVIDIA") != std::string::npos) o += std::string(o.empty() ? "" : " ") + "-DRK_NV_PTX=1";
     return o;
 }
 

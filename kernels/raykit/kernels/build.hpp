@@ -289,9 +289,9 @@ __kernel void rk_tree_up(__global const uint2* kids, __global const uint* parent
     uint g = parent[p];
     while (g != RK_INVALID) {
         const uint k = g - n;
-        mem_fence(CLK_GLOBAL_MEM_FENCE);
+        RK_GLOBAL_FENCE();
         if (atomic_inc(&counters[k]) == 0u) return;  /* the sibling computes g */
-        mem_fence(CLK_GLOBAL_MEM_FENCE);
+        RK_GLOBAL_FENCE();
         counters[k] = 0u;
         rk_box ba, bb;
         const rk_subtree a = rk_read_sub(rbox, ibox, icnt, n, kids[k].x, ci, &ba);

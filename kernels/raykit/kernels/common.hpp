@@ -41,6 +41,20 @@ inline constexpr const char* kCommon = R"CLC(
    calls (outputs through memory), which costs ~15 % of trace throughput. */
 #define RK_INLINE __attribute__((always_inline))
 
+/* The fence of the bottom-up passes (the build's leaf merge, the one-pass refit): the first
+   child to reach a parent writes its data, fences and counts; the second counts, fences and
+   reads that data, possibly in another work-group. OpenCL 1.2's mem_fence orders one
+   work-item's accesses, which suffices on CPU devices; NVIDIA's compiler (CUDA 13) emits it as
+   PTX membar.cta, a fence for the work-group only, and on an H200 the device's sort-by-axis
+   tree of a 70k torus then differed from the CPU twin's in 2 of 13 runs (a sibling's count
+   read stale). With RK_NV_PTX (raykit_build_options on NVIDIA's platform) the fence is
+   membar.gl, for the whole GPU: 0 of 13. */
+#ifdef RK_NV_PTX
+#define RK_GLOBAL_FENCE() asm volatile("membar.gl;" ::: "memory")
+#else
+#define RK_GLOBAL_FENCE() mem_fence(CLK_GLOBAL_MEM_FENCE)
+#endif
+
 /* max/min ignoring a NaN in the first argument (raykit::robust_max/min). */
 RK_INLINE float rk_robust_max(float candidate, float current) { return candidate > current ? candidate : current; }
 RK_INLINE float rk_robust_min(float candidate, float current) { return candidate < current ? candidate : current; }

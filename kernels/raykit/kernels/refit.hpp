@@ -137,9 +137,9 @@ __kernel void rk_refit_one_pass(__global rk_wnode* nodes, __global rk_block* blo
     for (;;) {
         const uint p = parents[g];
         if (p == RK_INVALID) return;
-        mem_fence(CLK_GLOBAL_MEM_FENCE);                         /* our boxes before the counter */
+        RK_GLOBAL_FENCE();                                       /* our boxes before the counter */
         if (atomic_inc(&counters[p]) + 1u < needs[p]) return;  /* a sibling finishes p */
-        mem_fence(CLK_GLOBAL_MEM_FENCE);                         /* the siblings' boxes after it */
+        RK_GLOBAL_FENCE();                                       /* the siblings' boxes after it */
         counters[p] = 0u;                                        /* ready for the next refit */
         rk_refit_node(nodes, p, blocks, tris, pos, &ob);
         g = p;
