@@ -108,10 +108,18 @@ RK_INLINE bool rk_one_octant(const rk_ray* rays, const uint n) {
     return true;
 }
 
+/* Lane l's triangle-test set-up, made when the lane first reaches a leaf or walks alone (most
+   camera rays of a packet reach no leaf; the CPU's packet_prepare does the same). */
+RK_INLINE void rk_lane_ready(rk_wt_ray* w, uint* ready, const rk_ray* o, const int l) {
+    if ((*ready >> l) & 1u) return;
+    w[l] = rk_wt_prepare(o[l].org, o[l].dir);
+    *ready |= 1u << l;
+}
+
 /* One object's walk for the lanes `lanes` of rays o[] (object space, all in one octant):
    closest hits improve best[] and tm[] in place (as rk_walk's leaf does, instance `inst`); any
    hits return the lanes that found one. */
-RK_INLINE uint rk_packet_walk(const rk_packet* pk, const rk_wt_ray* w, __global const rk_wnode* restrict nodes,
+RK_INLINE uint rk_packet_walk(const rk_packet* pk, rk_wt_ray* w, uint* ready, __global const rk_wnode* restrict nodes,
                               __global const rk_block* restrict blocks, const rk_object* ob, const uint object,
                               const uint inst, const rk_ray* o, uint lanes, const int any, rk_hit* best, float* tm,
                               const rk_filter* f) {
@@ -123,6 +131,7 @@ RK_INLINE uint rk_packet_walk(const rk_packet* pk, const rk_wt_ray* w, __global 
         if (ccnt == 0u && popcount(cmask) <= RK_PACKET_SWITCH) {
             for (uint lm = cmask; lm; lm &= lm - 1u) {  /* each lane alone below this node */
                 const int l = rk_lowest_bit(lm);
+                rk_lane_ready(w, ready, o, l);
                 const rk_slab_ray s = rk_slab_prepare(o[l].org, o[l].dir, o[l].tmin);
                 if ((rk_object_walk(&s, w + l, nodes, blocks, cidx, 0u, o[l].tmin, tm + l, any, inst, object, ob,
                                     best + l, f, 0) & RK_WALK_HIT) && any)
@@ -174,6 +183,7 @@ RK_INLINE uint rk_packet_walk(const rk_packet* pk, const rk_wt_ray* w, __global 
         } else {
             for (uint lm = cmask; lm; lm &= lm - 1u) {  /* each entering lane: the single-ray leaf */
                 const int l = rk_lowest_bit(lm);
+                rk_lane_ready(w, ready, o, l);
                 if (rk_leaf(w + l, blocks, cidx, ccnt, o[l].tmin, tm + l, any, inst, object, ob, best + l, f) && any)
                     finished |= 1u << l;
             }
@@ -221,14 +231,13 @@ RK_INLINE uint rk_packet_object(const rk_scene* sc, const rk_object* ob, const u
         }
         ltmin[k] = r->tmin;
         oct[k] = rk_octant(r->dir);
-        if ((lanes >> k) & 1u) w[k] = rk_wt_prepare(r->org, r->dir);
     }
     for (int a = 0; a < 3; ++a) {
         p.org[a] = vload16(0, lorg[a]);
         p.inv[a] = vload16(0, linv[a]);
     }
     p.tmin = vload16(0, ltmin);
-    uint finished = 0u;
+    uint finished = 0u, ready = 0u;
     while (lanes) {
         const int o0 = oct[rk_lowest_bit(lanes)];
         uint group = 0u;
@@ -239,7 +248,7 @@ RK_INLINE uint rk_packet_object(const rk_scene* sc, const rk_object* ob, const u
             p.wnear[a] = (2 * a + neg) * RK_WIDTH;
             p.wfar[a] = (2 * a + 1 - neg) * RK_WIDTH;
         }
-        finished |= rk_packet_walk(&p, w, nodes, blocks, ob, object, inst, o, group, any, best, tm, f);
+        finished |= rk_packet_walk(&p, w, &ready, nodes, blocks, ob, object, inst, o, group, any, best, tm, f);
         lanes &= ~group;
     }
     return finished;
