@@ -13,7 +13,9 @@
 #include <cstddef>
 #include <span>
 #include <stdexcept>
+#include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "raykit/cl/device.hpp"
@@ -86,6 +88,67 @@ private:
     ::cl::Buffer buffer_;
     std::size_t size_ = 0;
     std::size_t capacity_ = 0;
+};
+
+/// Host memory that device results are read back into: a CL_MEM_ALLOC_HOST_PTR
+/// buffer mapped once and kept mapped (never passed to a kernel), so platforms
+/// that pin such buffers (NVIDIA's) copy into it by DMA, not through a staging
+/// copy as into a std::vector. Grows on demand; move-only; unmapped on destruction.
+template <class T>
+class HostStage {
+    static_assert(std::is_trivially_copyable_v<T>, "host stages hold trivially copyable types");
+
+public:
+    HostStage() = default;
+    HostStage(const HostStage&) = delete;
+    HostStage& operator=(const HostStage&) = delete;
+    HostStage(HostStage&& o) noexcept { swap(o); }
+    HostStage& operator=(HostStage&& o) noexcept {
+        swap(o);
+        return *this;
+    }
+    ~HostStage() { release(); }
+
+    /// `count` elements of mapped host memory, valid until the next larger request.
+    std::span<T> get(Device& dev, std::size_t count) {
+        if (count > count_) {
+            release();
+            cl_int err = CL_SUCCESS;
+            buffer_ = ::cl::Buffer(dev.context(), CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, count * sizeof(T), nullptr,
+                                   &err);
+            if (err != CL_SUCCESS)
+                throw Error("clCreateBuffer(CL_MEM_ALLOC_HOST_PTR, " + std::to_string(count * sizeof(T)) + " bytes)", err);
+            queue_ = dev.queue();
+            void* p = queue_.enqueueMapBuffer(buffer_, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, count * sizeof(T), nullptr,
+                                              nullptr, &err);
+            check(err, "clEnqueueMapBuffer");
+            ptr_ = static_cast<T*>(p);
+            count_ = count;
+        }
+        return {ptr_, count};
+    }
+
+private:
+    void release() noexcept {
+        if (ptr_ != nullptr) {
+            queue_.enqueueUnmapMemObject(buffer_, ptr_);
+            queue_.finish();
+        }
+        ptr_ = nullptr;
+        count_ = 0;
+        buffer_ = ::cl::Buffer();
+    }
+    void swap(HostStage& o) noexcept {
+        std::swap(buffer_, o.buffer_);
+        std::swap(queue_, o.queue_);
+        std::swap(ptr_, o.ptr_);
+        std::swap(count_, o.count_);
+    }
+
+    ::cl::Buffer buffer_;
+    ::cl::CommandQueue queue_;
+    T* ptr_ = nullptr;
+    std::size_t count_ = 0;
 };
 
 }  // namespace raykit::cl

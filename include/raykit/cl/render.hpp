@@ -508,8 +508,8 @@ public:
         }
         dev.finish();  // the last shadow launch, so that resolve_ms is the read-back alone
         const auto t_resolve = Clock::now();
-        std::vector<float> px(n_pixels * 4);
-        image_.read(dev, std::span<float>(px));
+        const std::span<float> px = readback_.get(dev, n_pixels * 4);
+        image_.read(dev, px);
         const float inv_spp = sampler.inv_spp();
         Image img(frame.width, frame.height, vec4(0.0f));
         for (std::size_t i = 0; i < n_pixels; ++i)
@@ -734,6 +734,7 @@ private:
     AABB bounds_;
     bool fixed_bounds_ = false;
     Buffer<float> srgb_lut_, image_;
+    HostStage<float> readback_;  ///< the image read back (pinned on NVIDIA: resolve was 2.0 of 2.36 ms on an H200)
     Buffer<std::uint32_t> material_ids_, counters_, steps_;
     Buffer<ShadeObjectRecord> shade_objects_;
     Buffer<MaterialRecord> materials_;
