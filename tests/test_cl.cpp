@@ -222,6 +222,27 @@ TEST(ClProgram, OpenClErrorsNameTheCall) {
     }
 }
 
+// The renderer reads its image back into a HostStage (pinned on NVIDIA). A stage keeps its
+// memory for smaller requests, grows for larger ones, and moves; reads land there exactly.
+TEST(ClBuffer, HostStageHoldsReadsAndGrows) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    std::vector<float> src(1000);
+    for (std::size_t i = 0; i < src.size(); ++i) src[i] = float(i) * 0.5f - 7.0f;
+    const rcl::Buffer<float> buf(dev, src);
+    rcl::HostStage<float> stage;
+    const std::span<float> a = stage.get(dev, 100);
+    buf.read(dev, a, 20);
+    for (std::size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a[i], src[20 + i]) << i;
+    EXPECT_EQ(stage.get(dev, 50).data(), a.data());  // a smaller request keeps the memory
+    rcl::HostStage<float> moved(std::move(stage));
+    const std::span<float> b = moved.get(dev, 1000);  // grows
+    EXPECT_EQ(b.size(), 1000u);
+    buf.read(dev, b);
+    EXPECT_TRUE(std::equal(b.begin(), b.end(), src.begin()));
+    stage = std::move(moved);  // the moved-from stage takes the memory back
+    EXPECT_EQ(stage.get(dev, 1000).data(), b.data());
+}
+
 TEST(ClProgram, BuildsOnceAndCaches) {
     RAYKIT_REQUIRE_DEVICE(dev);
     // a program nobody else builds: the first call compiles, the second is cached
