@@ -91,9 +91,10 @@ private:
 };
 
 /// Host memory that device results are read back into: a CL_MEM_ALLOC_HOST_PTR
-/// buffer mapped once and kept mapped (never passed to a kernel), so platforms
-/// that pin such buffers (NVIDIA's) copy into it by DMA, not through a staging
-/// copy as into a std::vector. Grows on demand; move-only; unmapped on destruction.
+/// buffer mapped once and kept mapped (never passed to a kernel), which a driver
+/// can pin. On an H200 the renderer's 4.9 MB image read back 2.05-2.43 ms into a
+/// new std::vector and 1.00-1.14 ms into a stage. Grows on demand; move-only;
+/// unmapped on destruction.
 template <class T>
 class HostStage {
     static_assert(std::is_trivially_copyable_v<T>, "host stages hold trivially copyable types");
