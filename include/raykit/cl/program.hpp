@@ -22,13 +22,16 @@
 // (clSetKernelArg): one per user thread.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cstddef>
 #include <cstdio>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <regex>
 #include <span>
+#include <sstream>
 #include <string>
 #include <string_view>
 #include <tuple>
@@ -46,6 +49,9 @@ struct SourcePart {
     std::string text;
 };
 
+/// What precedes each part's name in an assembled program (locate_in_parts reads it back).
+inline constexpr std::string_view kPartDirective = "#line 1 \"";
+
 /// Concatenates the parts, each preceded by `#line 1 "name"` and followed by
 /// a newline. Quotes and backslashes in names are replaced by '_'.
 inline std::string assemble(std::span<const SourcePart> parts) {
@@ -57,7 +63,7 @@ inline std::string assemble(std::span<const SourcePart> parts) {
         std::string name = p.name;
         for (char& c : name)
             if (c == '"' || c == '\\' || c == '\n') c = '_';
-        out += "#line 1 \"" + name + "\"\n";
+        out.append(kPartDirective).append(name).append("\"\n");
         out += p.text;
         if (out.empty() || out.back() != '\n') out += '\n';
     }
@@ -73,48 +79,27 @@ namespace detail {
 /// location at the start of a log line whose file is no part's name, and whose line lies
 /// inside a part, becomes "NAME:LINE" of that part. Locations already in parts stay as they are.
 inline std::string locate_in_parts(const std::string& source, const std::string& log) {
-    std::vector<std::pair<std::size_t, std::string>> starts;  // (line of the #line directive, name)
-    std::size_t line = 1, total = 1;
-    for (std::size_t i = 0; i < source.size(); ++line) {
-        std::size_t e = source.find('\n', i);
-        if (e == std::string::npos) e = source.size();
-        const std::string_view l(source.data() + i, e - i);
-        if (l.starts_with("#line 1 \"") && l.size() > 10 && l.back() == '"')
-            starts.emplace_back(line, std::string(l.substr(9, l.size() - 10)));
-        i = e + 1;
-        total = line;
-    }
-    const auto is_part = [&](std::string_view f) {
-        for (const auto& s : starts)
-            if (s.second == f) return true;
-        return false;
-    };
+    std::vector<std::pair<std::size_t, std::string>> parts;  // (line of the part's directive, name)
+    std::size_t lines = 0;
+    std::istringstream src(source);
+    for (std::string l; std::getline(src, l);)
+        if (++lines; l.starts_with(kPartDirective) && l.size() > kPartDirective.size() && l.back() == '"')
+            parts.emplace_back(lines, l.substr(kPartDirective.size(), l.size() - kPartDirective.size() - 1));
+    static const std::regex location(R"(^(\s*)([^\s:]+):(\d{1,9}):)");
     std::string out;
-    out.reserve(log.size() + 256);
-    for (std::size_t i = 0; i < log.size();) {
-        std::size_t e = log.find('\n', i);
-        e = e == std::string::npos ? log.size() : e + 1;
-        const std::string_view l(log.data() + i, e - i);
-        const std::size_t f0 = l.find_first_not_of(' ');
-        const std::size_t c1 = f0 == std::string_view::npos ? f0 : l.find(':', f0);
-        std::size_t d = c1 == std::string_view::npos ? c1 : c1 + 1;
-        while (d != std::string_view::npos && d < l.size() && l[d] >= '0' && l[d] <= '9') ++d;
-        bool done = false;
-        if (c1 != std::string_view::npos && d > c1 + 1 && d - c1 - 1 <= 9 && d < l.size() && l[d] == ':' &&
-            l.substr(f0, c1 - f0).find(' ') == std::string_view::npos && !is_part(l.substr(f0, c1 - f0))) {
-            const std::size_t at = std::stoul(std::string(l.substr(c1 + 1, d - c1 - 1)));
+    std::istringstream in(log);
+    for (std::string l; std::getline(in, l);) {
+        std::smatch m;
+        if (std::regex_search(l, m, location) &&
+            std::none_of(parts.begin(), parts.end(), [&](const auto& p) { return p.second == m[2].str(); })) {
+            const std::size_t at = std::stoul(m[3].str());
             const std::pair<std::size_t, std::string>* part = nullptr;
-            for (const auto& s : starts)
-                if (s.first < at) part = &s;
-            if (part && at <= total) {
-                out.append(l.substr(0, f0));
-                out += part->second + ":" + std::to_string(at - part->first);
-                out.append(l.substr(d));
-                done = true;
-            }
+            for (const auto& p : parts)
+                if (p.first < at) part = &p;
+            if (part && at <= lines) l = m[1].str() + part->second + ":" + std::to_string(at - part->first) + ":" + m.suffix().str();
         }
-        if (!done) out.append(l);
-        i = e;
+        out += l;
+        if (!in.eof()) out += '\n';
     }
     return out;
 }
@@ -213,7 +198,8 @@ inline std::string raykit_build_options(const Device& dev) {
     std::string o;
     if (dev.info().correctly_rounded_divide_sqrt) o += "-cl-fp32-correctly-rounded-divide-sqrt";
     // NVIDIA's mem_fence is a work-group fence; RK_NV_PTX makes RK_GLOBAL_FENCE membar.gl (kernels/common.hpp)
-    if (dev.info().platform_name.find("NVIDIA") != std::string::npos) o += std::string(o.empty() ? "" : " ") + "-DRK_NV_PTX=1";
+    if (dev.info().platform_name.find("NVIDIA") != std::string::npos)
+        o += std::string(o.empty() ? "" : " ") + "-DRK_NV_PTX=1";
     return o;
 }
 
