@@ -511,9 +511,12 @@ public:
         const std::span<float> px = readback_.get(dev, n_pixels * 4);
         image_.read(dev, px);
         const float inv_spp = sampler.inv_spp();
-        Image img(frame.width, frame.height, vec4(0.0f));
+        Image img;  // filled once, from the read-back (not cleared first)
+        img.width = frame.width;
+        img.height = frame.height;
+        img.pixels.reserve(n_pixels);
         for (std::size_t i = 0; i < n_pixels; ++i)
-            img.pixels[i] = vec4(px[4 * i], px[4 * i + 1], px[4 * i + 2], px[4 * i + 3]) * inv_spp;
+            img.pixels.push_back(vec4(px[4 * i], px[4 * i + 1], px[4 * i + 2], px[4 * i + 3]) * inv_spp);
         const auto t_end = Clock::now();
         for (Timed& e : events) {
             if (e.event() == nullptr) continue;  // nothing was launched
