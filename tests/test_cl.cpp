@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <optional>
 #include <random>
 #include <string>
 #include <utility>
@@ -306,6 +307,86 @@ TEST(ClProgram, LogLinesOfTheWholeTextAreNamedByPart) {
 }
 
 // ---------------------------------------------------------------- 2. layouts
+
+// quantize_node (device-free): seeded random nodes at offsets from 0 to 1e30 and extents from 0
+// to 1e30, with 1 to 8 slots in use; every decoded box holds its child's box, no plane is
+// looser than two steps and two ulps, and the step is at most 4/255 of the extent (or the
+// smallest, 2^-126). Non-finite boxes and leaves of more than 255 blocks are refused.
+TEST(ClQuantize, DecodedBoxesHoldTheChildrenAndAreTight) {
+    std::mt19937_64 rng(2027);
+    std::uniform_real_distribution<float> U(0.0f, 1.0f);
+    const float offsets[] = {0.0f, -3.5f, 1e3f, 1e6f, -1e7f, 3e9f, -1e30f, 1e30f};
+    const float extents[] = {0.0f, 1e-30f, 1e-3f, 1.0f, 250.0f, 1e5f, 1e30f};
+    std::size_t nodes = 0, outside = 0, loose = 0, coarse = 0;
+    for (int trial = 0; trial < 4000; ++trial) {
+        const float off = offsets[trial % 8], ext = extents[(trial / 8) % 7];
+        rcl::DeviceNode n;
+        for (int c = 0; c < rcl::kDeviceWidth; ++c) n.clear(c);
+        const int used = 1 + int(rng() % 8);
+        for (int c = 0; c < used; ++c) {
+            AABB b;
+            for (int a = 0; a < 3; ++a) {
+                const float x = off + ext * U(rng), y = off + ext * U(rng);
+                b.min[a] = std::min(x, y);
+                b.max[a] = trial % 5 == 0 ? b.min[a] : std::max(x, y);  // flat boxes too
+            }
+            const int slot = (c * 3 + trial) % rcl::kDeviceWidth;
+            if (!n.unused(slot)) continue;
+            n.set_box(slot, b);
+            n.index[slot] = c % 2 ? 7u + unsigned(c) : 100u;
+            n.count[slot] = c % 2 ? 0u : unsigned(1 + c);
+        }
+        const std::optional<rcl::QuantizedNode> q = rcl::quantize_node(n);
+        ASSERT_TRUE(q.has_value());
+        ++nodes;
+        for (int c = 0; c < rcl::kDeviceWidth; ++c) {
+            ASSERT_EQ(((q->used >> c) & 1u) != 0, !n.unused(c));
+            if (n.unused(c)) continue;
+            EXPECT_EQ(q->index[c], n.index[c]);
+            EXPECT_EQ(q->count[c], n.count[c]);
+            const AABB want = n.box(c), got = rcl::quantized_box(*q, c);
+            for (int a = 0; a < 3; ++a) {
+                const double step = std::ldexp(1.0, q->exponent[a]);
+                const double ulp_lo = std::abs(double(std::nextafter(want.min[a], kInf)) - want.min[a]);
+                const double ulp_hi = std::abs(double(std::nextafter(want.max[a], kInf)) - want.max[a]);
+                outside += !(got.min[a] <= want.min[a]) + !(got.max[a] >= want.max[a]);
+                loose += (double(want.min[a]) - got.min[a] > 2 * step + 2 * ulp_lo) +
+                         (double(got.max[a]) - want.max[a] > 2 * step + 2 * ulp_hi);
+                float lo = kInf, hi = -kInf;
+                for (int k = 0; k < rcl::kDeviceWidth; ++k)
+                    if (!n.unused(k)) {
+                        lo = std::min(lo, n.planes[2 * a][k]);
+                        hi = std::max(hi, n.planes[2 * a + 1][k]);
+                    }
+                coarse += step > std::max(4.0 * (double(hi) - double(lo)) / 255.0, std::ldexp(1.0, -126));
+            }
+        }
+    }
+    std::printf("[ info ] %zu random nodes: %zu planes outside their child, %zu looser than 2 steps + 2 ulps, %zu "
+                "axes with a step over 4/255 of the extent\n",
+                nodes, outside, loose, coarse);
+    EXPECT_EQ(outside, 0u);
+    EXPECT_EQ(loose, 0u);
+    EXPECT_EQ(coarse, 0u);
+
+    rcl::DeviceNode n;
+    for (int c = 0; c < rcl::kDeviceWidth; ++c) n.clear(c);
+    n.set_box(0, AABB{{0, 0, 0}, {1, 1, 1}});
+    n.index[0] = 3;
+    n.count[0] = 255;
+    EXPECT_TRUE(rcl::quantize_node(n).has_value());
+    n.count[0] = 256;
+    EXPECT_FALSE(rcl::quantize_node(n).has_value()) << "a leaf of 256 blocks";
+    n.count[0] = 1;
+    n.planes[1][0] = kInf;
+    EXPECT_FALSE(rcl::quantize_node(n).has_value()) << "an infinite plane";
+    n.planes[1][0] = std::nanf("");
+    EXPECT_FALSE(rcl::quantize_node(n).has_value()) << "a NaN plane";
+    for (int c = 0; c < rcl::kDeviceWidth; ++c) n.clear(c);
+    const std::optional<rcl::QuantizedNode> empty = rcl::quantize_node(n);
+    ASSERT_TRUE(empty.has_value());
+    EXPECT_EQ(empty->used, 0u);
+}
 
 TEST(ClLayout, DeviceAgreesWithHost) {
     RAYKIT_REQUIRE_DEVICE(dev);
@@ -648,6 +729,75 @@ TEST(ClTrace, PacketWalkEqualsSingleRaysBitForBit) {
         EXPECT_EQ(d, 0u) << "leaf " << leaf;
         EXPECT_GT(hits, rays.size() / 4);
         EXPECT_EQ(compare_mesh(tracer, m, bvh, rays).prim, 0u);
+    }
+}
+
+// Quantized nodes (cl/device_tree.hpp quantize_node) against the full ones on the same device:
+// every word of every answer equal, single rays and packets, on tori with leaves of 1 and 8
+// (packet test rays: camera tiles, axis-parallel and -0 directions, narrowed intervals, vertex
+// aims), camera rays, needle soups, icospheres aimed at vertices and edges at scales 1 and 1e3
+// and offsets 0 and 1e6, a torus 1e7 from the origin and one scaled by 2e9 (near the 2^32 limit of raykit/math/limits.hpp).
+TEST(ClTrace, QuantizedNodesGiveTheFullNodesAnswersBitForBit) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    struct Case {
+        std::string name;
+        Mesh mesh;
+        unsigned leaf;
+        std::vector<Ray> rays;
+    };
+    std::vector<Case> cases;
+    const auto num = [](float x) {
+        char b[32];
+        std::snprintf(b, sizeof b, "%g", double(x));
+        return std::string(b);
+    };
+    const Mesh torus = make_bumpy_torus(20000);
+    for (unsigned leaf : {1u, 8u}) cases.push_back({"torus 20k, leaf " + std::to_string(leaf), torus, leaf, packet_test_rays(torus, 3001, 31)});
+    {
+        AABB box;
+        for (const vec3& p : torus.positions) box.grow(p);
+        cases.push_back({"torus 20k, camera", torus, 8, camera_rays(camera_looking_at(box, 120, 90))});
+    }
+    for (unsigned leaf : {1u, 4u}) {
+        const Mesh soup = make_random_soup(3000, 5, 0.02f);  // thin, crossing triangles
+        cases.push_back({"soup, leaf " + std::to_string(leaf), soup, leaf, packet_test_rays(soup, 2001, 17)});
+    }
+    for (float scale : {1.0f, 1e3f})
+        for (float offset : {0.0f, 1e6f}) {
+            Mesh m = make_icosphere(4);
+            transform_positions(m, scale, vec3(offset, -offset, offset));
+            std::vector<Ray> rays = vertex_edge_rays(m, vec3(offset, -offset, offset), scale, 42);
+            cases.push_back({"icosphere, scale " + num(scale) + ", offset " + num(offset), m, 8, rays});
+        }
+    for (const auto& [scale, offset] : {std::pair{1.0f, 1e7f}, std::pair{2e9f, 0.0f}}) {
+        Mesh m = make_bumpy_torus(5000);
+        transform_positions(m, scale, vec3(offset, offset, -offset));
+        cases.push_back({"torus 5k, scale " + num(scale) + ", offset " + num(offset), m, 8,
+                         packet_test_rays(m, 1001, 3)});
+    }
+    for (Case& c : cases) {
+        const Bvh bvh = build(c.mesh, c.leaf);
+        rcl::MeshTracer full(dev, c.mesh, bvh);
+        rcl::MeshTracer quant(dev, c.mesh, bvh, {}, rcl::NodeForm::quantized);
+        ASSERT_EQ(quant.node_form(), rcl::NodeForm::quantized) << c.name;
+        full.set_packet_walk(false);
+        const std::vector<Hit> a = full.closest(c.rays);
+        const std::vector<std::uint32_t> oa = full.any(c.rays);
+        const auto [b, packet_d] = packet_vs_single(quant, c.rays);  // quantized: packets vs single rays
+        quant.set_packet_walk(false);
+        const std::vector<std::uint32_t> ob = quant.any(c.rays);
+        std::size_t d = 0, hits = 0;
+        for (std::size_t i = 0; i < c.rays.size(); ++i) {
+            d += !same_bits(a[i].t, b[i].t) + !same_bits(a[i].u, b[i].u) + !same_bits(a[i].v, b[i].v) +
+                 (a[i].prim != b[i].prim) + (a[i].inst != b[i].inst) + (oa[i] != ob[i]);
+            hits += a[i].valid();
+        }
+        std::printf("[ info ] %s: %zu rays, %zu hits; quantized vs full: %zu words differ; quantized packets vs "
+                    "single rays: %zu\n",
+                    c.name.c_str(), c.rays.size(), hits, d, packet_d);
+        EXPECT_EQ(d, 0u) << c.name;
+        EXPECT_EQ(packet_d, 0u) << c.name;
+        EXPECT_GT(hits, 0u) << c.name;
     }
 }
 

@@ -16,9 +16,26 @@
 //                           made); MeshTracer makes one from the given Bvh.
 // Dynamic objects rewrite their blocks on the device in the refit's leaf step
 // (kernels/raykit/kernels/refit.hpp), after the vertex stage: no read-back.
+//
+//   quantize_node(n)        the node with its child boxes as bytes (QuantizedNode, 104 bytes
+//                           against 256), in the spirit of Ylitie, Karras and Laine's compressed
+//                           wide BVH: per axis an origin (the used children's lowest plane) and
+//                           a power-of-two step, each plane rounded outward to a byte. Every
+//                           step is float arithmetic whose result is exact or rounded once, the
+//                           same on every host and device: origin + q·2^e (the product is exact),
+//                           so the walk decodes the very planes checked here. A ray that enters
+//                           a child's box enters its decoded box, so a walk over these nodes
+//                           tests a superset of the triangles and returns the same closest hit
+//                           (the tie rule does not depend on the visiting order) and the same
+//                           any-hit answer. Children whose box is not finite, and leaves of more
+//                           than 255 blocks, cannot be quantized: std::nullopt.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <limits>
+#include <optional>
 #include <vector>
 
 #include "raykit/bvh/wide.hpp"
@@ -50,6 +67,98 @@ inline DeviceTree device_tree(const BlockBvhT<kDeviceWidth>& b) {
         n = b.tree.nodes[i];
         for (int c = 0; c < kDeviceWidth; ++c)
             if (n.count[c] == 0 && !b.tree.nodes[i].unused(c)) ++n.index[c];
+    }
+    return out;
+}
+
+/// 2^e as a float, for the exponents quantize_node stores ([-126, 127]).
+inline float quantized_step(int e) noexcept { return std::ldexp(1.0f, e); }
+
+/// The plane a quantized byte stands for (rk_qslab's decoding): origin + q·step, one rounding.
+inline float quantized_plane(float origin, std::uint8_t q, float step) noexcept {
+    return origin + static_cast<float>(q) * step;  // the product is exact: fusing changes nothing
+}
+
+/// The box of slot c of a quantized node, as the device decodes it.
+inline AABB quantized_box(const QuantizedNode& n, int c) noexcept {
+    AABB b;
+    for (int a = 0; a < 3; ++a) {
+        const float step = quantized_step(n.exponent[a]);
+        b.min[a] = quantized_plane(n.origin[a], n.q[2 * a][c], step);
+        b.max[a] = quantized_plane(n.origin[a], n.q[2 * a + 1][c], step);
+    }
+    return b;
+}
+
+/// `n` with its used children's boxes rounded outward to bytes (see the header comment);
+/// std::nullopt when a used child's box is not finite or a leaf has more than 255 blocks.
+inline std::optional<QuantizedNode> quantize_node(const DeviceNode& n) {
+    QuantizedNode out{};
+    for (int c = 0; c < kDeviceWidth; ++c) {
+        if (n.unused(c)) continue;
+        if (n.count[c] > 255u) return std::nullopt;
+        for (int r = 0; r < 6; ++r)
+            if (!std::isfinite(n.planes[r][c])) return std::nullopt;
+        out.used = static_cast<std::uint8_t>(out.used | (1u << c));
+        out.index[c] = n.index[c];
+        out.count[c] = static_cast<std::uint8_t>(n.count[c]);
+    }
+    if (out.used == 0) return out;
+    for (int a = 0; a < 3; ++a) {
+        float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+        for (int c = 0; c < kDeviceWidth; ++c)
+            if ((out.used >> c) & 1u) {
+                lo = std::min(lo, n.planes[2 * a][c]);
+                hi = std::max(hi, n.planes[2 * a + 1][c]);
+            }
+        // The smallest step whose 255 steps span the extent (as rounded), then larger ones until
+        // every plane's outward byte fits: the largest q below a low plane, the smallest above a
+        // high one (planes decode monotonically in q, so both are found by stepping).
+        const float extent = hi - lo;
+        int e = -126;
+        if (!std::isfinite(extent)) {
+            e = 121;  // an extent past FLT_MAX: 255·2^121 is still below it
+        } else if (extent > 0.0f) {
+            int x = 0;
+            std::frexp(extent / 255.0f, &x);  // extent/255 < 2^x
+            e = std::max(-126, std::min(127, x));
+        }
+        for (;; ++e) {
+            const float step = quantized_step(e);
+            bool fits = true;
+            for (int c = 0; c < kDeviceWidth && fits; ++c) {
+                if (!((out.used >> c) & 1u)) continue;
+                const float clo = n.planes[2 * a][c], chi = n.planes[2 * a + 1][c];
+                int ql = static_cast<int>(std::min(255.0f, std::floor((clo - lo) / step)));
+                ql = std::max(ql, 0);
+                while (ql > 0 && quantized_plane(lo, std::uint8_t(ql), step) > clo) --ql;
+                while (ql < 255 && quantized_plane(lo, std::uint8_t(ql + 1), step) <= clo) ++ql;
+                int qh = static_cast<int>(std::min(255.0f, std::max(0.0f, std::ceil((chi - lo) / step))));
+                while (qh > 0 && quantized_plane(lo, std::uint8_t(qh - 1), step) >= chi) --qh;
+                while (qh < 255 && quantized_plane(lo, std::uint8_t(qh), step) < chi) ++qh;
+                if (quantized_plane(lo, std::uint8_t(qh), step) < chi) {
+                    fits = false;
+                    break;
+                }
+                out.q[2 * a][c] = static_cast<std::uint8_t>(ql);
+                out.q[2 * a + 1][c] = static_cast<std::uint8_t>(qh);
+            }
+            if (fits || e == 127) break;
+        }
+        out.origin[a] = lo;
+        out.exponent[a] = static_cast<std::int8_t>(e);
+    }
+    return out;
+}
+
+/// Every node of `nodes` quantized (quantize_node), or std::nullopt when one cannot be.
+inline std::optional<std::vector<QuantizedNode>> quantize_nodes(const std::vector<DeviceNode>& nodes) {
+    std::vector<QuantizedNode> out;
+    out.reserve(nodes.size());
+    for (const DeviceNode& n : nodes) {
+        std::optional<QuantizedNode> q = quantize_node(n);
+        if (!q) return std::nullopt;
+        out.push_back(*q);
     }
     return out;
 }

@@ -6,6 +6,7 @@
 //   C++                      OpenCL C      bytes
 //   raykit::Node             rk_node       32 (aligned 32; the top level)
 //   cl::DeviceNode           rk_wnode      256 (aligned 64; WideNodeT<kDeviceWidth>, objects)
+//   cl::QuantizedNode        rk_qnode      104 (the same node, child boxes quantized to bytes)
 //   raykit::TriangleBlock4   rk_block      160 (aligned 32; objects' leaves)
 //   raykit::Triangle         rk_triangle   12
 //   raykit::Vertex           rk_vertex     32
@@ -53,6 +54,18 @@ inline constexpr int kDeviceWidth = 8;
 /// An object tree's node as the device sees it (rk_wnode; see cl/device_tree.hpp).
 using DeviceNode = WideNodeT<kDeviceWidth>;
 
+/// A DeviceNode with its child boxes quantized to bytes (rk_qnode; cl/device_tree.hpp
+/// quantize_node): plane (row r = 2·axis + hi, child c) is origin[axis] + q[r][c]·2^exponent[axis]
+/// in float, rounded outward so it holds the child's box; `used` has a bit per slot in use.
+struct QuantizedNode {
+    float origin[3];
+    std::int8_t exponent[3];
+    std::uint8_t used;
+    std::uint8_t q[6][kDeviceWidth];
+    std::uint32_t index[kDeviceWidth];  ///< as DeviceNode::index
+    std::uint8_t count[kDeviceWidth];   ///< as DeviceNode::count (leaves of at most 255 blocks)
+};
+
 /// An instance as the device sees it (rk_instance).
 struct InstanceRecord {
     Affine world_to_object;
@@ -81,6 +94,11 @@ static_assert(sizeof(DeviceNode) == 32 * kDeviceWidth && alignof(DeviceNode) == 
 static_assert(offsetof(DeviceNode, planes) == 0 && offsetof(DeviceNode, index) == 24 * kDeviceWidth &&
               offsetof(DeviceNode, count) == 28 * kDeviceWidth);
 static_assert(std::is_trivially_copyable_v<DeviceNode>);
+static_assert(sizeof(QuantizedNode) == 104 && alignof(QuantizedNode) == 4);
+static_assert(offsetof(QuantizedNode, exponent) == 12 && offsetof(QuantizedNode, used) == 15 &&
+              offsetof(QuantizedNode, q) == 16 && offsetof(QuantizedNode, index) == 64 &&
+              offsetof(QuantizedNode, count) == 96);
+static_assert(std::is_trivially_copyable_v<QuantizedNode>);
 static_assert(sizeof(TriangleBlock4) == 160 && alignof(TriangleBlock4) == 32);
 static_assert(offsetof(TriangleBlock4, p) == 0 && offsetof(TriangleBlock4, prim) == 144);
 static_assert(std::is_trivially_copyable_v<TriangleBlock4>);
@@ -132,6 +150,13 @@ inline std::vector<LayoutEntry> layout_entries() {
     off("rk_wnode", "planes", offsetof(DeviceNode, planes));
     off("rk_wnode", "index", offsetof(DeviceNode, index));
     off("rk_wnode", "count", offsetof(DeviceNode, count));
+    size("rk_qnode", sizeof(QuantizedNode), alignof(QuantizedNode));
+    off("rk_qnode", "origin", offsetof(QuantizedNode, origin));
+    off("rk_qnode", "exponent", offsetof(QuantizedNode, exponent));
+    off("rk_qnode", "used", offsetof(QuantizedNode, used));
+    off("rk_qnode", "q", offsetof(QuantizedNode, q));
+    off("rk_qnode", "index", offsetof(QuantizedNode, index));
+    off("rk_qnode", "count", offsetof(QuantizedNode, count));
     size("rk_block", sizeof(TriangleBlock4), alignof(TriangleBlock4));
     off("rk_block", "p", offsetof(TriangleBlock4, p));
     off("rk_block", "prim", offsetof(TriangleBlock4, prim));

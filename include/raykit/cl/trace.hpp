@@ -24,6 +24,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -55,11 +56,19 @@ inline bool packet_walk_default(const Device& dev) noexcept { return dev.info().
 /// compiles only the pair it launches (the renderer's programs have kernels of their own).
 enum class TraceKernels { none, mesh, scene };
 
+/// The form of the objects' nodes a walk reads: DeviceNode (256 bytes, the CPU's own tree) or
+/// QuantizedNode (104 bytes, its child boxes as bytes rounded outward; cl/device_tree.hpp).
+/// Both give the same answers bit for bit; the quantized walk tests a few more boxes and
+/// triangles (it never counts the same traversal steps as the CPU).
+enum class NodeForm { full, quantized };
+
 /// The walk's program parts: trace.hpp with the kernels `kernels`, and with `packets` the packet
 /// walk and its kernels (the *_packet kernels, kPacketRays rays per work-item), preceded by the
-/// RK_PACKET define that later parts (the renderer's) test.
-inline std::vector<SourcePart> trace_parts(bool packets, TraceKernels kernels) {
+/// RK_PACKET define that later parts (the renderer's) test; with NodeForm::quantized the walks
+/// read QuantizedNodes (RK_QNODES).
+inline std::vector<SourcePart> trace_parts(bool packets, TraceKernels kernels, NodeForm form = NodeForm::full) {
     std::vector<SourcePart> parts;
+    if (form == NodeForm::quantized) parts.push_back({"<nodes>", "#define RK_QNODES 1\n"});
     if (kernels != TraceKernels::none)
         parts.push_back({"<trace kernels>", kernels == TraceKernels::mesh ? "#define RK_MESH_KERNELS 1\n"
                                                                          : "#define RK_SCENE_KERNELS 1\n"});
@@ -98,12 +107,14 @@ struct TraceKernelSet {
 };
 
 /// Config + layout + common math + camera + the mesh trace kernels for `dev` (cached), with the
-/// packet kernels when `packets`. `extra_options` are appended to the build options (e.g.
-/// "-DRK_EDGE_DOUBLE=0" forces the float edge functions of kernels/raykit/kernels/common.hpp).
-inline Program trace_program(Device& dev, const std::string& extra_options = {}, bool packets = false) {
+/// packet kernels when `packets`, walking nodes of the form `form`. `extra_options` are appended
+/// to the build options (e.g. "-DRK_EDGE_DOUBLE=0" forces the float edge functions of
+/// kernels/raykit/kernels/common.hpp).
+inline Program trace_program(Device& dev, const std::string& extra_options = {}, bool packets = false,
+                             NodeForm form = NodeForm::full) {
     std::vector<SourcePart> parts = base_parts();
     parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
-    for (SourcePart& p : trace_parts(packets, TraceKernels::mesh)) parts.push_back(std::move(p));
+    for (SourcePart& p : trace_parts(packets, TraceKernels::mesh, form)) parts.push_back(std::move(p));
     std::string opts = raykit_build_options(dev);
     if (!extra_options.empty()) opts += (opts.empty() ? "" : " ") + extra_options;
     return build_program(dev, assemble(parts), opts);
@@ -123,14 +134,20 @@ inline void camera_rays(Device& dev, ::cl::Kernel& k, const CameraFrame& frame, 
 class MeshTracer {
 public:
     /// Uploads the tree in the device's form (device_tree() of BlockBvh8::build(mesh, bvh): 8-wide
-    /// nodes over 4-triangle blocks); `extra_options` go to trace_program().
-    MeshTracer(Device& dev, const MeshView& mesh, const Bvh& bvh, const std::string& extra_options = {}) : dev_(&dev) {
+    /// nodes over 4-triangle blocks), its nodes in the form `form` where they can be (a tree
+    /// with a non-finite box or a leaf of more than 255 blocks stays full: node_form());
+    /// `extra_options` go to trace_program().
+    MeshTracer(Device& dev, const MeshView& mesh, const Bvh& bvh, const std::string& extra_options = {},
+               NodeForm form = NodeForm::full)
+        : dev_(&dev), asked_form_(form) {
         if (mesh.positions.size() >= 0x55555555u || mesh.size() >= 0x55555555u)
             throw std::length_error("raykit::cl::MeshTracer: mesh too large for 32-bit indices");
         extra_options_ = extra_options;
-        build_kernels();
         update_tree(mesh, bvh);
     }
+
+    /// The form of the nodes uploaded (NodeForm::full where the asked form could not be made).
+    NodeForm node_form() const noexcept { return form_; }
 
     /// Whether rays walk as packets (packet_walk_default: on CPU devices); the answers are the
     /// same either way.
@@ -148,9 +165,22 @@ public:
             throw std::invalid_argument("raykit::cl::MeshTracer: tree and mesh differ in triangle count");
         const DeviceTree tree = device_tree(BlockBvhT<kDeviceWidth>::build(mesh, bvh));
         if (tree.nodes.size() >= 0xFFFFFFFFu) throw std::length_error("raykit::cl::MeshTracer: tree too large");
-        nodes_ = Buffer<DeviceNode>(*dev_, tree.nodes, CL_MEM_READ_ONLY);
+        std::optional<std::vector<QuantizedNode>> q;
+        if (asked_form_ == NodeForm::quantized) q = quantize_nodes(tree.nodes);
+        const NodeForm form = q ? NodeForm::quantized : NodeForm::full;
+        if (q) {
+            qnodes_ = Buffer<QuantizedNode>(*dev_, *q, CL_MEM_READ_ONLY);
+            nodes_ = {};
+        } else {
+            nodes_ = Buffer<DeviceNode>(*dev_, tree.nodes, CL_MEM_READ_ONLY);
+            qnodes_ = {};
+        }
         blocks_ = Buffer<TriangleBlock4>(*dev_, tree.blocks, CL_MEM_READ_ONLY);
         node_count_ = static_cast<std::uint32_t>(tree.nodes.size());
+        if (form != form_ || !built_) {
+            form_ = form;
+            build_kernels();
+        }
     }
 
     /// Closest hits of rays[0..n) into hits (device-resident; asynchronous).
@@ -158,7 +188,7 @@ public:
         check_count(rays, n);
         hits.reserve(*dev_, n);
         ::cl::Kernel& k = kernels_.pick(false, packets_);
-        set_args(k, nodes_, blocks_, node_count_, rays, hits, static_cast<std::uint32_t>(n));
+        set_trace_args(k, blocks_, node_count_, rays, hits, static_cast<std::uint32_t>(n));
         launches_ += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
     }
     /// occluded[i] = 1 when rays[i] hits anything in [tmin, tmax], else 0.
@@ -166,7 +196,7 @@ public:
         check_count(rays, n);
         occluded.reserve(*dev_, n);
         ::cl::Kernel& k = kernels_.pick(true, packets_);
-        set_args(k, nodes_, blocks_, node_count_, rays, occluded, static_cast<std::uint32_t>(n));
+        set_trace_args(k, blocks_, node_count_, rays, occluded, static_cast<std::uint32_t>(n));
         launches_ += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
     }
 
@@ -193,16 +223,25 @@ public:
     const Program& program() const noexcept { return program_; }
     /// Kernel launches so far.
     std::size_t launches() const noexcept { return launches_; }
-    /// The tree's nodes (device_tree()).
+    /// The tree's nodes (device_tree()) when node_form() is NodeForm::full, else empty.
     Buffer<DeviceNode>& nodes() noexcept { return nodes_; }
+    /// The tree's nodes quantized when node_form() is NodeForm::quantized, else empty.
+    Buffer<QuantizedNode>& quantized_nodes() noexcept { return qnodes_; }
     /// The leaves' triangle blocks.
     Buffer<TriangleBlock4>& blocks() noexcept { return blocks_; }
 
 private:
     void build_kernels() {
-        program_ = trace_program(*dev_, extra_options_, packets_);
+        program_ = trace_program(*dev_, extra_options_, packets_, form_);
+        built_ = true;
         kernels_ = TraceKernelSet(program_, TraceKernels::mesh, packets_);
         k_camera_ = program_.kernel("rk_camera_rays");
+    }
+    /// The kernel's arguments: the nodes in their form, then `rest`.
+    template <class... Rest>
+    void set_trace_args(::cl::Kernel& k, const Rest&... rest) {
+        if (form_ == NodeForm::quantized) set_args(k, qnodes_, rest...);
+        else set_args(k, nodes_, rest...);
     }
     static void check_count(const Buffer<Ray>& rays, std::size_t n) {
         if (n > rays.size()) throw std::out_of_range("raykit::cl::MeshTracer: more rays asked for than the buffer holds");
@@ -215,7 +254,11 @@ private:
     Program program_;
     TraceKernelSet kernels_;
     ::cl::Kernel k_camera_;
+    NodeForm asked_form_ = NodeForm::full;
+    NodeForm form_ = NodeForm::full;
+    bool built_ = false;
     Buffer<DeviceNode> nodes_;
+    Buffer<QuantizedNode> qnodes_;
     Buffer<TriangleBlock4> blocks_;
     std::uint32_t node_count_ = 0;
     std::size_t launches_ = 0;

@@ -32,6 +32,19 @@ typedef struct __attribute__((aligned(64))) {
     uint count[RK_WIDTH];
 } rk_wnode;
 
+/* rk_wnode with its child boxes quantized to bytes (raykit::cl::QuantizedNode, 104 bytes against
+   256): plane (row r = 2 * axis + hi, child c) is origin[axis] + q[r][c] * 2^exponent[axis] in
+   float, rounded outward on the host (cl/device_tree.hpp quantize_node) so that it holds the
+   child's box; bit c of `used` is set for a slot in use; index and count as rk_wnode's. */
+typedef struct {
+    float origin[3];
+    char exponent[3];
+    uchar used;
+    uchar q[6][RK_WIDTH];
+    uint index[RK_WIDTH];
+    uchar count[RK_WIDTH];
+} rk_qnode;
+
 /* Four triangles' vertices in leaf order (raykit::TriangleBlock4): p[3 * corner + axis][lane];
    unused lanes repeat the leaf's last triangle. */
 typedef struct __attribute__((aligned(32))) {

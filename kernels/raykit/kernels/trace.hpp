@@ -26,7 +26,11 @@
 // rays, binary → wide + blocks: torus100k primary closest 29.5 → 19.2,
 // random closest 143 → 110, bunny primary closest 24.2 → 15.6, random
 // closest 100 → 71); 8-wide nodes over per-triangle leaves without blocks
-// were within noise of the blocks on these rows.
+// were within noise of the blocks on these rows. A program that defines
+// RK_QNODES walks the same tree with its child boxes quantized to bytes
+// (rk_qnode, 104 bytes against 256; rk_qslab decodes them): the same answers,
+// a few more boxes and triangles tested; on PoCL it was slower where the tree
+// is cache-resident and faster on the 1M torus (README, "Quantized nodes").
 // The top level stays binary (rk_node, bvh/traverse.hpp's order: nearer child
 // first, the left one on equal entry distances): it is the CPU's top level,
 // and the order instances are entered in decides the tmax each object's walk
@@ -61,6 +65,21 @@
 namespace raykit::kernels {
 
 inline constexpr const char* kTrace = R"CLC(
+/* The objects' node form a program walks (rk_onode, tested by rk_oslab): rk_qnode where the
+   program defines RK_QNODES (cl/trace.hpp trace_parts, NodeForm::quantized), else rk_wnode. */
+#ifdef RK_QNODES
+typedef rk_qnode rk_onode;
+#else
+typedef rk_wnode rk_onode;
+#endif
+RK_INLINE uint rk_oslab(const rk_slab_ray* s, __global const rk_onode* n, float tmax, float* td) {
+#ifdef RK_QNODES
+    return rk_qslab(s, n, tmax, td);
+#else
+    return rk_wslab(s, n, tmax, td);
+#endif
+}
+
 RK_INLINE rk_hit rk_miss(void) {
     rk_hit h;
     h.t = INFINITY;
@@ -91,7 +110,7 @@ typedef struct {
     __global const uint* top_ids;
     __global const rk_instance* instances;
     __global const rk_object* objects;
-    __global const rk_wnode* nodes;
+    __global const rk_onode* nodes;
     __global const rk_block* blocks;
     uint top_count;
     int mesh;
@@ -209,7 +228,7 @@ RK_INLINE bool rk_leaf(const rk_wt_ray* w, __global const rk_block* restrict blo
    box the ray enters, for a packet walk that has thinned out (trace_packet.hpp). Closest hits
    improve *best and *tmax in place; any hit returns at the first. Entered children nearest
    first (ties in slot order), the others pushed far to near; any hit pushes them in slot order. */
-RK_INLINE int rk_object_walk(const rk_slab_ray* s, const rk_wt_ray* w, __global const rk_wnode* restrict nodes,
+RK_INLINE int rk_object_walk(const rk_slab_ray* s, const rk_wt_ray* w, __global const rk_onode* restrict nodes,
                              __global const rk_block* restrict blocks, const uint start, const uint start_count,
                              const float tmin, float* tmax, const int any, const uint inst, const uint object,
                              const rk_object* ob, rk_hit* best, const rk_filter* f, uint* steps) {
@@ -220,10 +239,10 @@ RK_INLINE int rk_object_walk(const rk_slab_ray* s, const rk_wt_ray* w, __global 
     int wsp = 0;
     for (;;) {
         if (ccnt == 0u) {
-            __global const rk_wnode* n = nodes + cidx;
+            __global const rk_onode* n = nodes + cidx;
             if (steps && cidx != 0u) ++*steps;
             float td[RK_WIDTH];
-            uint mask = rk_wslab(s, n, *tmax, td);
+            uint mask = rk_oslab(s, n, *tmax, td);
             if (mask) {
                 if (wsp + RK_WIDTH - 1 > RK_WSTACK) return found | RK_WALK_ABORT;
                 int i = rk_lowest_bit(mask);
@@ -338,7 +357,7 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
             }
             ++leaf_k;
             if (ob.node_count == 0) continue;
-            __global const rk_wnode* restrict nodes = sc->nodes + ob.node_offset;
+            __global const rk_onode* restrict nodes = sc->nodes + ob.node_offset;
             __global const rk_block* restrict blocks = sc->blocks + ob.block_offset;
             const rk_slab_ray s = mapped ? rk_slab_prepare(o.org, o.dir, o.tmin) : top_s;
             const rk_wt_ray w = rk_wt_prepare(o.org, o.dir);
@@ -366,7 +385,7 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
     }
 }
 
-RK_INLINE rk_scene rk_mesh_scene(__global const rk_wnode* nodes, __global const rk_block* blocks,
+RK_INLINE rk_scene rk_mesh_scene(__global const rk_onode* nodes, __global const rk_block* blocks,
                                  const uint node_count) {
     rk_scene sc;
     sc.top = 0;
@@ -385,13 +404,13 @@ RK_INLINE rk_scene rk_mesh_scene(__global const rk_wnode* nodes, __global const 
 /* The kernel parameters of a two-level scene, and the rk_scene made of them (tris: for the
    renderer's leaf filter; the walk reads the blocks). */
 #define RK_SCENE_PARAMS __global const rk_node* top, const uint top_count, __global const uint* top_ids, \
-    __global const rk_instance* instances, __global const rk_object* objects, __global const rk_wnode* nodes, \
+    __global const rk_instance* instances, __global const rk_object* objects, __global const rk_onode* nodes, \
     __global const rk_block* blocks, __global const rk_triangle* tris
 #define RK_SCENE_MAKE(sc) const rk_scene sc = {top, top_ids, instances, objects, nodes, blocks, \
     top_count, 0, {0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u}}
 
 #ifdef RK_MESH_KERNELS
-__kernel void rk_mesh_closest(__global const rk_wnode* nodes, __global const rk_block* blocks, const uint node_count,
+__kernel void rk_mesh_closest(__global const rk_onode* nodes, __global const rk_block* blocks, const uint node_count,
                               __global const rk_ray* rays, __global rk_hit* hits, const uint n) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;
@@ -402,7 +421,7 @@ __kernel void rk_mesh_closest(__global const rk_wnode* nodes, __global const rk_
     hits[i] = h;
 }
 
-__kernel void rk_mesh_any(__global const rk_wnode* nodes, __global const rk_block* blocks, const uint node_count,
+__kernel void rk_mesh_any(__global const rk_onode* nodes, __global const rk_block* blocks, const uint node_count,
                           __global const rk_ray* rays, __global uint* occluded, const uint n) {
     const uint i = (uint)get_global_id(0);
     if (i >= n) return;

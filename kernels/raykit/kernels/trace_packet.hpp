@@ -86,14 +86,19 @@ RK_INLINE uint rk_packet_enter(const rk_packet* p, const float* tm, const float 
     return rk_lane_bits(islessequal(t0, t1)) & mask;
 }
 
-/* rk_packet_enter for child `i` of node `n`. */
-RK_INLINE uint rk_packet_child(const rk_packet* p, const float* tm, __global const rk_wnode* n, const int i,
+/* rk_packet_enter for child `i` of node `n` (a quantized node's planes decoded as rk_qslab does). */
+RK_INLINE uint rk_packet_child(const rk_packet* p, const float* tm, __global const rk_onode* n, const int i,
                                const uint mask, float* tn_out) {
+#ifdef RK_QNODES
+    return rk_packet_enter(p, tm, rk_qplane(n, p->wnear[0] + i, 0), rk_qplane(n, p->wnear[1] + i, 1),
+                           rk_qplane(n, p->wnear[2] + i, 2), rk_qplane(n, p->wfar[0] + i, 0),
+                           rk_qplane(n, p->wfar[1] + i, 1), rk_qplane(n, p->wfar[2] + i, 2), mask, tn_out);
+#else
     __global const float* f = (__global const float*)n;
     return rk_packet_enter(p, tm, f[p->wnear[0] + i], f[p->wnear[1] + i], f[p->wnear[2] + i], f[p->wfar[0] + i],
                            f[p->wfar[1] + i], f[p->wfar[2] + i], mask, tn_out);
+#endif
 }
-
 
 /* The octant of a direction: bit a set when component a's sign bit is. */
 RK_INLINE int rk_octant(const float* dir) {
@@ -119,7 +124,7 @@ RK_INLINE void rk_lane_ready(rk_wt_ray* w, uint* ready, const rk_ray* o, const i
 /* One object's walk for the lanes `lanes` of rays o[] (object space, all in one octant):
    closest hits improve best[] and tm[] in place (as rk_walk's leaf does, instance `inst`); any
    hits return the lanes that found one. */
-RK_INLINE uint rk_packet_walk(const rk_packet* pk, rk_wt_ray* w, uint* ready, __global const rk_wnode* restrict nodes,
+RK_INLINE uint rk_packet_walk(const rk_packet* pk, rk_wt_ray* w, uint* ready, __global const rk_onode* restrict nodes,
                               __global const rk_block* restrict blocks, const rk_object* ob, const uint object,
                               const uint inst, const rk_ray* o, uint lanes, const int any, rk_hit* best, float* tm,
                               const rk_filter* f) {
@@ -142,7 +147,7 @@ RK_INLINE uint rk_packet_walk(const rk_packet* pk, rk_wt_ray* w, uint* ready, __
                 if (!lanes) return finished;
             }
         } else if (ccnt == 0u) {
-            __global const rk_wnode* n = nodes + cidx;
+            __global const rk_onode* n = nodes + cidx;
             const int lead = rk_lowest_bit(cmask);
             float key[RK_WIDTH];
             uint msk[RK_WIDTH];
@@ -216,7 +221,7 @@ RK_INLINE uint rk_packet_walk(const rk_packet* pk, rk_wt_ray* w, uint* ready, __
 RK_INLINE uint rk_packet_object(const rk_scene* sc, const rk_object* ob, const uint object, const uint inst,
                                 const rk_ray* o, uint lanes, const int any, rk_hit* best, float* tm,
                                 const rk_filter* f) {
-    __global const rk_wnode* restrict nodes = sc->nodes + ob->node_offset;
+    __global const rk_onode* restrict nodes = sc->nodes + ob->node_offset;
     __global const rk_block* restrict blocks = sc->blocks + ob->block_offset;
     rk_packet p;
     rk_wt_ray w[RK_PACKET];
@@ -316,14 +321,14 @@ RK_INLINE void rk_packet_kernel(const rk_scene* sc, __global const rk_ray* rays,
 }
 
 #ifdef RK_MESH_KERNELS
-__kernel void rk_mesh_closest_packet(__global const rk_wnode* nodes, __global const rk_block* blocks,
+__kernel void rk_mesh_closest_packet(__global const rk_onode* nodes, __global const rk_block* blocks,
                                      const uint node_count, __global const rk_ray* rays, __global rk_hit* hits,
                                      const uint n) {
     const rk_scene sc = rk_mesh_scene(nodes, blocks, node_count);
     rk_packet_kernel(&sc, rays, hits, 0, n, 0);
 }
 
-__kernel void rk_mesh_any_packet(__global const rk_wnode* nodes, __global const rk_block* blocks,
+__kernel void rk_mesh_any_packet(__global const rk_onode* nodes, __global const rk_block* blocks,
                                  const uint node_count, __global const rk_ray* rays, __global uint* occluded,
                                  const uint n) {
     const rk_scene sc = rk_mesh_scene(nodes, blocks, node_count);
