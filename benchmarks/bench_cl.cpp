@@ -12,6 +12,8 @@
 //                                                      trace_packet.hpp; one ray per work-item where
 //                                                      the device is not a CPU)
 //   cl_trace/<scene>/<rays>/<closest|any>/device_single the same, one ray per work-item
+//   cl_trace/<scene>/<rays>/<closest|any>/device_q, device_q_single   the same with the nodes
+//                                                      quantized (NodeForm::quantized, 104 bytes)
 //   cl_trace/<scene>/<rays>/<closest|any>/cpu_blocks8/threads:2  the CPU's fastest path on the
 //                                                      same tree (BlockBvh8::make of the same Bvh)
 //   cl_trace/<scene>/<rays>/<closest|any>/cpu_batch8/threads:2  the same tree through the batch
@@ -55,6 +57,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -99,12 +102,12 @@ struct TraceSetup {
     rcl::Buffer<std::uint32_t> occluded;
 };
 
-TraceSetup& trace_setup(rcl::Device& dev, const rkbench::Scene& s, const std::string& set) {
-    static std::map<std::pair<std::string, std::string>, std::unique_ptr<TraceSetup>> cache;
-    auto& slot = cache[{s.name, set}];
+TraceSetup& trace_setup(rcl::Device& dev, const rkbench::Scene& s, const std::string& set, rcl::NodeForm form) {
+    static std::map<std::tuple<std::string, std::string, rcl::NodeForm>, std::unique_ptr<TraceSetup>> cache;
+    auto& slot = cache[{s.name, set, form}];
     if (!slot) {
         slot = std::make_unique<TraceSetup>();
-        slot->tracer = std::make_unique<rcl::MeshTracer>(dev, s.mesh, rkbench::raykit_bvh(s));
+        slot->tracer = std::make_unique<rcl::MeshTracer>(dev, s.mesh, rkbench::raykit_bvh(s), std::string(), form);
         const auto& r = rkbench::rays(s, set);
         slot->rays = rcl::Buffer<raykit::Ray>(dev, r, CL_MEM_READ_ONLY);
         slot->hits = rcl::Buffer<raykit::Hit>(dev, r.size());
@@ -114,12 +117,16 @@ TraceSetup& trace_setup(rcl::Device& dev, const rkbench::Scene& s, const std::st
 }
 
 void BM_TraceDevice(benchmark::State& state, const std::string& scene, const std::string& set, bool any,
-                    bool packets) {
+                    bool packets, rcl::NodeForm form) {
     rcl::Device* dev = device_or_skip(state);
     if (!dev) return;
     const rkbench::Scene* s = rkbench::scene_or_skip(state, scene);
     if (!s) return;
-    TraceSetup& t = trace_setup(*dev, *s, set);
+    TraceSetup& t = trace_setup(*dev, *s, set, form);
+    if (t.tracer->node_form() != form) {
+        state.SkipWithError("the tree could not be quantized");
+        return;
+    }
     t.tracer->set_packet_walk(packets);
     const std::size_t n = t.rays.size();
     // warm-up launch: PoCL compiles the kernel on its first launch
@@ -438,12 +445,15 @@ const bool registered = [] {
         for (const std::string set : {"primary", "random"})
             for (const bool any : {false, true}) {
                 const std::string base = "cl_trace/" + scene + "/" + set + "/" + (any ? "any" : "closest");
-                for (const bool packets : {true, false})
-                    benchmark::RegisterBenchmark((base + (packets ? "/device" : "/device_single")).c_str(),
-                                                 BM_TraceDevice, scene, set, any, packets)
-                        ->UseRealTime()
-                        ->MinTime(0.5)
-                        ->Unit(benchmark::kMillisecond);
+                for (const rcl::NodeForm form : {rcl::NodeForm::full, rcl::NodeForm::quantized})
+                    for (const bool packets : {true, false})
+                        benchmark::RegisterBenchmark(
+                            (base + (form == rcl::NodeForm::full ? "/device" : "/device_q") + (packets ? "" : "_single"))
+                                .c_str(),
+                            BM_TraceDevice, scene, set, any, packets, form)
+                            ->UseRealTime()
+                            ->MinTime(0.5)
+                            ->Unit(benchmark::kMillisecond);
                 for (const bool batch : {false, true})
                     benchmark::RegisterBenchmark((base + (batch ? "/cpu_batch8" : "/cpu_blocks8")).c_str(),
                                                  BM_TraceCpuBlocks, scene, set, any, batch)
