@@ -311,7 +311,8 @@ TEST(ClProgram, LogLinesOfTheWholeTextAreNamedByPart) {
 // quantize_node (device-free): seeded random nodes at offsets from 0 to 1e30 and extents from 0
 // to 1e30, with 1 to 8 slots in use; every decoded box holds its child's box, no plane is
 // looser than two steps and two ulps, and the step is at most 4/255 of the extent (or the
-// smallest, 2^-126). Non-finite boxes and leaves of more than 255 blocks are refused.
+// smallest, 2^-126). Leaves of more than 255 blocks are refused; NaN and infinite planes read
+// as unbounded; an empty child leaves its siblings' steps alone.
 TEST(ClQuantize, DecodedBoxesHoldTheChildrenAndAreTight) {
     std::mt19937_64 rng(2027);
     std::uniform_real_distribution<float> U(0.0f, 1.0f);
@@ -378,10 +379,26 @@ TEST(ClQuantize, DecodedBoxesHoldTheChildrenAndAreTight) {
     n.count[0] = 256;
     EXPECT_FALSE(rcl::quantize_node(n).has_value()) << "a leaf of 256 blocks";
     n.count[0] = 1;
-    n.planes[1][0] = kInf;
-    EXPECT_FALSE(rcl::quantize_node(n).has_value()) << "an infinite plane";
-    n.planes[1][0] = std::nanf("");
-    EXPECT_FALSE(rcl::quantize_node(n).has_value()) << "a NaN plane";
+    n.set_box(1, AABB{{-2, 0, 0}, {-1, 1, 1}});
+    n.index[1] = 9;
+    for (const float bad : {kInf, std::nanf("")}) {  // an unbounded or NaN high x plane: unbounded
+        n.planes[1][0] = bad;
+        const std::optional<rcl::QuantizedNode> q = rcl::quantize_node(n);
+        ASSERT_TRUE(q.has_value());
+        EXPECT_GE(rcl::quantized_box(*q, 0).max.x, std::numeric_limits<float>::max()) << bad;
+        EXPECT_LE(rcl::quantized_box(*q, 1).min.x, -2.0f) << bad;
+        EXPECT_GE(rcl::quantized_box(*q, 1).max.x, -1.0f) << bad;
+    }
+    n.planes[0][0] = std::nanf("");  // and a NaN low x plane: unbounded below
+    ASSERT_TRUE(rcl::quantize_node(n).has_value());
+    EXPECT_LE(rcl::quantized_box(*rcl::quantize_node(n), 0).min.x, -std::numeric_limits<float>::max());
+    n.set_box(0, AABB{});  // an empty child (a refit over NaN vertices) beside a finite one
+    const std::optional<rcl::QuantizedNode> e = rcl::quantize_node(n);
+    ASSERT_TRUE(e.has_value());
+    EXPECT_EQ(e->used, 3u);
+    EXPECT_LE(rcl::quantized_box(*e, 1).min.x, -2.0f);
+    EXPECT_GE(rcl::quantized_box(*e, 1).max.x, -1.0f);
+    EXPECT_LE(rcl::quantized_box(*e, 1).max.x, -0.9f) << "the empty child widened its sibling's axis";
     for (int c = 0; c < rcl::kDeviceWidth; ++c) n.clear(c);
     const std::optional<rcl::QuantizedNode> empty = rcl::quantize_node(n);
     ASSERT_TRUE(empty.has_value());
@@ -957,6 +974,67 @@ TEST(ClScene, WaveHookMatchesItsCpuTwinAndRefitIsBitIdentical) {
     const auto hooks = ds.compiled_hooks();
     EXPECT_EQ(hooks.size(), 2u);
     EXPECT_EQ(ds.launches().vertex, 1u + 2u + 2u);
+}
+
+// A DeviceScene walking quantized nodes (NodeForm::quantized) beside one walking full nodes, over
+// three frames of hooks and both refit methods: every object's quantized nodes are the host's
+// quantize_node of its full nodes byte for byte (static ones quantized on the host at upload, their
+// full nodes not uploaded; dynamic ones on the device after each refit), and every word of every
+// answer equals the full scene's, single rays and packets.
+TEST(ClScene, QuantizedNodesAreTheHostsBytesAndGiveTheFullAnswers) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    const Scene s = make_test_scene(true);
+    TestDeviceScene full(dev, s);
+    TestDeviceScene quant(dev, s, {}, rcl::NodeForm::quantized);
+    ASSERT_EQ(quant.node_form(), rcl::NodeForm::quantized);
+    const std::uint32_t soup = 2, cloth = 3;
+    for (int frame = 0; frame < 3; ++frame) {
+        const rcl::WaveHook::Params p{.time = 0.4f * float(frame), .amplitude = 0.1f, .frequency = 3.0f};
+        for (TestDeviceScene* ds : {&full, &quant}) {
+            ds->set_hook<rcl::WaveHook>(cloth, p);
+            if (frame == 1) ds->set_hook<rcl::ScaleHook>(soup, {1.1f});
+            ds->update(frame % 2 ? rcl::RefitMethod::level_wise : rcl::RefitMethod::one_pass);
+        }
+        std::size_t nodes = 0, differ = 0;
+        for (std::uint32_t o = 0; o < s.objects().size(); ++o) {
+            // a static object's full nodes are not on the device: the host's own
+            const std::vector<rcl::DeviceNode> fn =
+                s.objects()[o].dynamic() ? quant.nodes(o) : rcl::device_tree(s.objects()[o].blocks).nodes;
+            if (!s.objects()[o].dynamic() && !fn.empty()) {
+                EXPECT_THROW(quant.nodes(o), std::logic_error);
+            }
+            const std::vector<rcl::QuantizedNode> qn = quant.quantized_nodes(o);
+            ASSERT_EQ(fn.size(), qn.size());
+            for (std::size_t i = 0; i < fn.size(); ++i) {
+                const std::optional<rcl::QuantizedNode> want = rcl::quantize_node(fn[i]);
+                ASSERT_TRUE(want.has_value());
+                differ += std::memcmp(&*want, &qn[i], sizeof(rcl::QuantizedNode)) != 0;
+            }
+            nodes += fn.size();
+        }
+        const std::vector<Ray> rays = packet_test_rays(s.world_mesh().first, 1501, 61 + frame);
+        full.set_packet_walk(false);
+        const std::vector<Hit> a = full.closest(rays);
+        const std::vector<std::uint32_t> oa = full.any(rays);
+        const auto [b, packet_d] = packet_vs_single(quant, rays);
+        quant.set_packet_walk(false);
+        const std::vector<std::uint32_t> ob = quant.any(rays);
+        std::size_t d = 0, hits = 0;
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            d += !same_bits(a[i].t, b[i].t) + !same_bits(a[i].u, b[i].u) + !same_bits(a[i].v, b[i].v) +
+                 (a[i].prim != b[i].prim) + (a[i].inst != b[i].inst) + (oa[i] != ob[i]);
+            hits += a[i].valid();
+        }
+        std::printf("[ info ] frame %d: %zu nodes, %zu differ from the host's quantize_node; %zu rays, %zu hits, "
+                    "quantized vs full %zu words differ, quantized packets vs single rays %zu\n",
+                    frame, nodes, differ, rays.size(), hits, d, packet_d);
+        EXPECT_EQ(differ, 0u);
+        EXPECT_EQ(d, 0u);
+        EXPECT_EQ(packet_d, 0u);
+        EXPECT_GT(hits, rays.size() / 10);
+    }
+    EXPECT_EQ(quant.launches().quantize, 3u);
+    EXPECT_EQ(full.launches().quantize, 0u);
 }
 
 TEST(ClRefit, LevelWiseAndOnePassAreBitIdenticalToCpu) {

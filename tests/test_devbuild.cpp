@@ -17,6 +17,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <limits>
 #include <random>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -384,13 +385,32 @@ TEST(DeviceRebuild, FrameRebuildsWhenThePolicySaysSoAndAnswersStayExact) {
     rcl::DeviceRebuild settings;
     settings.enabled = true;
     rcl::DeviceScene<> ds(dev, cpu, settings);
+    // the same frames walking quantized nodes: the rebuilt tree's nodes are quantized again on the
+    // device, the host's bytes, and the answers stay the CPU's
+    rcl::DeviceScene<> dq(dev, cpu, settings, rcl::NodeForm::quantized);
+    ASSERT_EQ(dq.node_form(), rcl::NodeForm::quantized);
     const std::vector<Ray> rays = raykit::test::random_rays(torus, 3000, 5);
+    auto quantized_differ = [&] {
+        std::size_t differ = 0;
+        const std::vector<rcl::DeviceNode> fn = dq.nodes(body);
+        const std::vector<rcl::QuantizedNode> qn = dq.quantized_nodes(body);
+        for (std::size_t i = 0; i < fn.size(); ++i) {
+            const std::optional<rcl::QuantizedNode> want = rcl::quantize_node(fn[i]);
+            differ += !want || std::memcmp(&*want, &qn[i], sizeof(rcl::QuantizedNode)) != 0;
+        }
+        return differ;
+    };
 
     auto frame = [&](const std::vector<vec3>& pos) {
         ds.set_positions(body, pos);
+        dq.set_positions(body, pos);
         cpu.set_positions(body, pos);
         cpu.update_top_level();
-        return ds.update();
+        const rcl::FrameTimes ft = ds.update();
+        EXPECT_EQ(dq.update().rebuilt, ft.rebuilt);
+        EXPECT_EQ(quantized_differ(), 0u);
+        EXPECT_EQ(disagreements(dq, cpu, rays), 0u) << "quantized nodes";
+        return ft;
     };
     // a gentle wave keeps the neighbourhoods: refit only
     std::vector<vec3> pos = torus.positions;

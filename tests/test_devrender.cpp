@@ -955,3 +955,57 @@ TEST(DeviceRender, DynamicSceneMovedAndRenderedOnTheDeviceMatchesTheCpu) {
     EXPECT_EQ(ds.launches().vertex, 3u);
     EXPECT_EQ(ds.dynamic_object_count(), 1u);
 }
+
+// The renderer over a DeviceScene walking quantized nodes (NodeForm::quantized): the same images
+// as over full nodes, every channel of every pixel, while a dynamic object bends over three
+// frames (its nodes quantized again on the device after each refit), Whitted with reflections
+// and shadows, AO and normals, 2 spp.
+TEST(DeviceRender, QuantizedNodesRenderTheFullNodesImages) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    Texture tex = checker(8, 8);
+    RenderScene rs;
+    SceneBuilder f;
+    const auto fm = f.material(make_material(vec3(0.7f, 0.7f, 0.6f)));
+    f.quad({-5, 0, -5}, {5, 0, -5}, {5, 0, 5}, {-5, 0, 5}, fm);
+    const auto floor = rs.add_object(std::move(f.m));
+    const auto body = rs.add_object(textured_sphere(), ObjectKind::dynamic);
+    rs.materials[body].materials[0].map_kd = &tex;
+    rs.materials[body].materials[0].update_derived();
+    rs.scene.add_instance(floor);
+    rs.scene.add_instance(body, mat4(1.0f));
+    rs.scene.add_instance(body, place({2.0f, 1.2f, -1.0f}, 190.0f, {0.2f, 1.0f, 0.1f}, vec3(0.9f, 0.6f, 1.1f)));
+    rs.scene.update_top_level();
+    Camera cam;
+    cam.position = {0.8f, 3.0f, 6.0f};
+    cam.target = {0.6f, 0.8f, 0.0f};
+    cam.width = 80;
+    cam.height = 60;
+    rs.lights.push_back(Light::point({2.0f, 5.0f, 3.0f}, vec3(0.9f)));
+    rcl::DeviceScene<BendHook> full(dev, rs.scene);
+    rcl::DeviceScene<BendHook> quant(dev, rs.scene, {}, rcl::NodeForm::quantized);
+    ASSERT_EQ(quant.node_form(), rcl::NodeForm::quantized);
+    rcl::DeviceRenderer rf(full, rs.materials, rs.lights);
+    rcl::DeviceRenderer rq(quant, rs.materials, rs.lights);
+    for (int frame = 0; frame < 3; ++frame) {
+        const BendHook::Params p{.amount = 0.35f * float(frame), .uv_shift = 0.3f * float(frame)};
+        for (auto* ds : {&full, &quant}) {
+            ds->set_hook<BendHook>(body, p);
+            ds->update();
+        }
+        for (ShaderKind k : {ShaderKind::whitted, ShaderKind::normals, ShaderKind::ao}) {
+            RenderSettings set;
+            set.spp = 2;
+            set.seed = 5;
+            set.shade.shader = k;
+            set.shade.max_depth = 2;
+            set.shade.ao_samples = 8;
+            const Image a = rf.render(cam, set), b = rq.render(cam, set);
+            const Diff d = compare(a, b);
+            std::printf("[ info ] frame %d %s: %zu of %zu pixels differ, worst %g\n", frame, shader_name(k), d.bad,
+                        d.total, double(d.worst));
+            EXPECT_EQ(d.worst, 0.0f) << "frame " << frame << " " << shader_name(k);
+            EXPECT_GE(distinct_colours(b), 4u);
+        }
+    }
+    EXPECT_EQ(quant.launches().quantize, 3u);
+}

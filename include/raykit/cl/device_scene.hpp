@@ -30,6 +30,9 @@
 //                 PLOC or sort by axis) of each decided one into its ranges, with
 //                 its refit tables; the CPU twin builds it only when the device
 //                 builder gives up (FrameTimes::rebuilt_on_host);
+//   quantize      with NodeForm::quantized, after a refit or rebuild: the dynamic
+//                 trees' nodes quantized again (kernels/raykit/kernels/quantize.hpp,
+//                 one launch), the static ones were on the host at upload;
 //   top level     dynamic root boxes gathered (one launch + one small read,
 //                 only after a refit), instance world boxes from the Scene's
 //                 transforms (transformed_box), the top-level tree built (or
@@ -64,6 +67,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -82,6 +86,7 @@
 #include "raykit/cl/refit.hpp"
 #include "raykit/cl/trace.hpp"
 #include "raykit/kernels/camera.hpp"
+#include "raykit/kernels/quantize.hpp"
 #include "raykit/kernels/trace.hpp"
 #include "raykit/scene/scene.hpp"
 
@@ -94,7 +99,8 @@ struct LaunchCounts {
     std::size_t top_level = 0;  ///< root-box gathers
     std::size_t trace = 0;      ///< closest / any launches
     std::size_t camera = 0;     ///< camera-ray launches
-    std::size_t total() const noexcept { return vertex + refit + top_level + trace + camera; }
+    std::size_t quantize = 0;   ///< dynamic nodes quantized again (NodeForm::quantized)
+    std::size_t total() const noexcept { return vertex + refit + top_level + trace + camera + quantize; }
 };
 
 /// Wall-clock milliseconds of one update(), each stage waited for, and what its rebuild stage did.
@@ -102,11 +108,12 @@ struct FrameTimes {
     double vertex_ms = 0.0;
     double refit_ms = 0.0;
     double rebuild_ms = 0.0;        ///< the policy's cost measure and any rebuilds (DeviceRebuild)
+    double quantize_ms = 0.0;       ///< the dynamic nodes quantized again (NodeForm::quantized)
     double top_level_ms = 0.0;
     std::uint32_t rebuilt = 0;          ///< dynamic objects rebuilt this update
     std::uint32_t rebuilt_on_host = 0;  ///< of those, built on the CPU (too deep for the device builder)
     double worst_growth = 1.0;          ///< largest cost growth (refit / last build) the policy saw
-    double total_ms() const noexcept { return vertex_ms + refit_ms + rebuild_ms + top_level_ms; }
+    double total_ms() const noexcept { return vertex_ms + refit_ms + rebuild_ms + quantize_ms + top_level_ms; }
 };
 
 /// Rebuilding dynamic objects' trees on the device when refitting has made them poor
@@ -140,8 +147,17 @@ public:
     const Bvh& top_level() const noexcept { return top_; }
 
     // The arrays as kernels bind them (kernels/raykit/kernels/trace.hpp's RK_SCENE_PARAMS order).
-    /// Every object's tree nodes (device_tree()), at its node_offset.
+    /// Every object's tree nodes (device_tree()), at its node_offset; with quantized nodes only
+    /// the dynamic objects' (they come first).
     const Buffer<DeviceNode>& nodes() const noexcept { return nodes_; }
+    /// The form of the nodes the walks read (NodeForm::full unless asked for and possible).
+    NodeForm node_form() const noexcept { return form_; }
+    /// The nodes quantized (NodeForm::quantized; empty otherwise), at the same indices.
+    const Buffer<QuantizedNode>& quantized_nodes() const noexcept { return qnodes_; }
+    /// The nodes the walks read, in node_form(): the trace kernels' node argument.
+    const ::cl::Buffer& walk_nodes() const noexcept {
+        return form_ == NodeForm::quantized ? qnodes_.handle() : nodes_.handle();
+    }
     /// Every object's leaves' triangle blocks (DeviceTree::blocks), at its block_offset.
     const Buffer<TriangleBlock4>& blocks() const noexcept { return blocks_; }
     /// Every object's triangles (vertex indices relative to the object), at its triangle_offset.
@@ -180,7 +196,9 @@ protected:
     std::vector<ObjectRecord> records_;
     std::vector<AABB> roots_;
     bool fresh_ = false;
+    NodeForm form_ = NodeForm::full;
     Buffer<DeviceNode> nodes_;
+    Buffer<QuantizedNode> qnodes_;
     Buffer<TriangleBlock4> blocks_;
     Buffer<Triangle> triangles_;
     Buffer<float> positions_;
@@ -210,7 +228,10 @@ class DeviceScene : public DeviceSceneArrays {
     static constexpr std::size_t hook_index = index_of<H>(std::make_index_sequence<kHooks>{});
 
 public:
-    DeviceScene(Device& dev, const Scene& scene, const DeviceRebuild& rebuild = {})
+    /// Uploads `scene` (see the top of this file); the walks read nodes of the form `form`
+    /// where every tree allows it (leaves of at most 255 blocks, and device rebuilds that make
+    /// none larger), else full ones: node_form().
+    DeviceScene(Device& dev, const Scene& scene, const DeviceRebuild& rebuild = {}, NodeForm form = NodeForm::full)
         : DeviceSceneArrays(dev, scene), rebuild_(rebuild) {
         if (rebuild_.enabled && !dev.info().fp64)
             throw std::invalid_argument("raykit::cl::DeviceScene: device rebuilds need cl_khr_fp64 (DeviceBuilder)");
@@ -265,13 +286,24 @@ public:
         };
         for (std::uint32_t i = 0; i < objs.size(); ++i)
             if (objs[i].dynamic()) add(i);
+        dynamic_node_end_ = checked(nodes.size());  // the dynamic trees' ranges, capacity included
         for (std::uint32_t i = 0; i < objs.size(); ++i)
             if (!objs[i].dynamic()) add(i);
         roots_.resize(objs.size());
         for (std::uint32_t i = 0; i < objs.size(); ++i) roots_[i] = objs[i].bounds();
 
         for (std::size_t d = 0; d < trees.size(); ++d) trees[d].nodes = dynamic_trees[d];
-        nodes_ = Buffer<DeviceNode>(dev, nodes);
+        if (form == NodeForm::quantized &&
+            !(rebuild_.enabled && (rebuild_.build.leaf.leaf_limit() + 3) / 4 > 255u)) {
+            if (std::optional<std::vector<QuantizedNode>> q = quantize_nodes(nodes)) {
+                qnodes_ = Buffer<QuantizedNode>(dev, *q);
+                form_ = NodeForm::quantized;
+            }
+        }
+        // quantized: the full nodes only for the dynamic trees, which refit (and rebuild) them
+        nodes_ = Buffer<DeviceNode>(dev, std::span<const DeviceNode>(nodes.data(), form_ == NodeForm::quantized
+                                                                                      ? dynamic_node_end_
+                                                                                      : nodes.size()));
         blocks_ = Buffer<TriangleBlock4>(dev, blocks);
         triangles_ = Buffer<Triangle>(dev, tris, CL_MEM_READ_ONLY);
         positions_ = Buffer<float>(dev, pos);
@@ -383,6 +415,12 @@ public:
         if (moved && rebuild_.enabled) rebuild_stage(ft);
         ft.rebuild_ms = ms(t0);
         t0 = clock::now();
+        if (moved && form_ == NodeForm::quantized) {
+            quantize_dynamic();
+            dev_->finish();
+        }
+        ft.quantize_ms = ms(t0);
+        t0 = clock::now();
         if (moved) gather_roots();
         update_top_level(top);
         dev_->finish();
@@ -395,6 +433,7 @@ public:
     void refit(RefitMethod method) {
         ensure_program();
         launches_.refit += refit_plan_.run(*dev_, refit_kernels_, method, refit_buffers());
+        quantize_dynamic();
     }
 
     // ------------------------------------------------------------ tracing
@@ -409,15 +448,15 @@ public:
         prepare_trace(rays, n);
         hits.reserve(*dev_, n);
         ::cl::Kernel& k = trace_kernels_.pick(false, packets_);
-        set_args(k, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays, hits,
-                 static_cast<std::uint32_t>(n));
+        set_args(k, top_nodes_, top_count_, top_ids_, instances_, objects_, walk_nodes(), blocks_, triangles_, rays,
+                 hits, static_cast<std::uint32_t>(n));
         launches_.trace += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
     }
     void any(const Buffer<Ray>& rays, Buffer<std::uint32_t>& occluded, std::size_t n) {
         prepare_trace(rays, n);
         occluded.reserve(*dev_, n);
         ::cl::Kernel& k = trace_kernels_.pick(true, packets_);
-        set_args(k, top_nodes_, top_count_, top_ids_, instances_, objects_, nodes_, blocks_, triangles_, rays,
+        set_args(k, top_nodes_, top_count_, top_ids_, instances_, objects_, walk_nodes(), blocks_, triangles_, rays,
                  occluded, static_cast<std::uint32_t>(n));
         launches_.trace += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
     }
@@ -446,6 +485,7 @@ public:
     using DeviceSceneArrays::blocks;
     using DeviceSceneArrays::nodes;
     using DeviceSceneArrays::positions;
+    using DeviceSceneArrays::quantized_nodes;
 
     const LaunchCounts& launches() const noexcept { return launches_; }
     const Program& program() {
@@ -468,10 +508,22 @@ public:
         if (!out.empty()) positions_.read(*dev_, std::span<float>(reinterpret_cast<float*>(out.data()), out.size() * 3), std::size_t(r.vertex_offset) * 3);
         return out;
     }
+    /// (With quantized nodes a static object has no full nodes on the device: std::logic_error.)
     std::vector<DeviceNode> nodes(std::uint32_t object) {
         const ObjectRecord& r = records_.at(object);  // node_count: the current tree's (after device rebuilds too)
+        if (form_ == NodeForm::quantized && r.node_offset >= dynamic_node_end_ && r.node_count > 0)
+            throw std::logic_error("raykit::cl::DeviceScene::nodes: a static object's nodes are only quantized "
+                                   "on the device (quantized_nodes)");
         std::vector<DeviceNode> out(r.node_count);
         if (!out.empty()) nodes_.read(*dev_, std::span<DeviceNode>(out), r.node_offset);
+        return out;
+    }
+    /// An object's current tree nodes as the walk reads them when node_form() is quantized.
+    std::vector<QuantizedNode> quantized_nodes(std::uint32_t object) {
+        if (form_ != NodeForm::quantized) throw std::logic_error("raykit::cl::DeviceScene::quantized_nodes: full nodes");
+        const ObjectRecord& r = records_.at(object);
+        std::vector<QuantizedNode> out(r.node_count);
+        if (!out.empty()) qnodes_.read(*dev_, std::span<QuantizedNode>(out), r.node_offset);
         return out;
     }
     /// An object's current triangle blocks (its tree's leaves).
@@ -532,8 +584,10 @@ private:
         if (have_program_ && used == used_ && (!packets_ || trace_kernels_.packets)) return;
         std::vector<SourcePart> parts = base_parts();
         parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
-        for (SourcePart& p : trace_parts(packets_, TraceKernels::scene)) parts.push_back(std::move(p));
+        for (SourcePart& p : trace_parts(packets_, TraceKernels::scene, form_)) parts.push_back(std::move(p));
         if (!dynamic_.empty()) parts.push_back(refit_part());
+        const bool requantize = !dynamic_.empty() && form_ == NodeForm::quantized;
+        if (requantize) parts.push_back({"raykit/kernels/quantize.hpp", kernels::kQuantize});
         if (!dynamic_.empty() && rebuild_.enabled)
             for (SourcePart& b : build_parts(rebuild_.build.method)) parts.push_back(std::move(b));
         for_each_hook([&]<std::size_t I>() {
@@ -545,6 +599,7 @@ private:
         program_ = build_program(*dev_, assemble(parts), raykit_build_options(*dev_));
         trace_kernels_ = TraceKernelSet(program_, TraceKernels::scene, packets_);
         k_camera_ = program_.kernel("rk_camera_rays");
+        if (requantize) k_quantize_ = program_.kernel("rk_quantize_nodes");
         if (!dynamic_.empty()) {
             refit_kernels_ = RefitKernels(program_);
             k_roots_ = program_.kernel("rk_gather_roots");
@@ -664,6 +719,15 @@ private:
         node_counts_.write(*dev_, std::span<const std::uint32_t>(&node_count, 1), d);
     }
 
+    /// With quantized nodes: the dynamic trees' current nodes quantized again (one launch over
+    /// their ranges; nodes past a tree's count are left).
+    void quantize_dynamic() {
+        if (form_ != NodeForm::quantized || dynamic_.empty()) return;
+        set_args(k_quantize_, nodes_, qnodes_, objects_, which_roots_, static_cast<std::uint32_t>(dynamic_.size()),
+                 dynamic_node_end_);
+        launches_.quantize += launch(dev_->queue(), k_quantize_, dynamic_node_end_, 64);
+    }
+
     void gather_roots() {
         if (dynamic_.empty()) return;
         const auto n = static_cast<std::uint32_t>(dynamic_.size());
@@ -728,7 +792,8 @@ private:
 
     Program program_;
     TraceKernelSet trace_kernels_;
-    ::cl::Kernel k_camera_, k_roots_;
+    ::cl::Kernel k_camera_, k_roots_, k_quantize_;
+    std::uint32_t dynamic_node_end_ = 0;  ///< nodes [0, this) belong to dynamic objects (capacity included)
     bool packets_ = packet_walk_default(*dev_);  ///< see packet_walk()
     RefitKernels refit_kernels_;
     RefitPlan refit_plan_;

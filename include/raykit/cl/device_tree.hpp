@@ -27,8 +27,8 @@
 //                           a child's box enters its decoded box, so a walk over these nodes
 //                           tests a superset of the triangles and returns the same closest hit
 //                           (the tie rule does not depend on the visiting order) and the same
-//                           any-hit answer. Children whose box is not finite, and leaves of more
-//                           than 255 blocks, cannot be quantized: std::nullopt.
+//                           any-hit answer. Leaves of more than 255 blocks cannot be
+//                           quantized (std::nullopt).
 #pragma once
 
 #include <algorithm>
@@ -90,53 +90,65 @@ inline AABB quantized_box(const QuantizedNode& n, int c) noexcept {
     return b;
 }
 
+namespace detail {
+/// A child's plane as quantize_node reads it: NaN as unbounded on its side (the slab test
+/// ignores a NaN plane), then ±∞ as ±FLT_MAX, so every finite point of the child stays inside
+/// (an empty child, +∞ / −∞ after a refit of NaN vertices, decodes to an inverted box).
+inline float quantize_input(float x, bool high) noexcept {
+    constexpr float m = std::numeric_limits<float>::max();
+    if (std::isnan(x)) return high ? m : -m;
+    return std::clamp(x, -m, m);
+}
+}  // namespace detail
+
 /// `n` with its used children's boxes rounded outward to bytes (see the header comment);
-/// std::nullopt when a used child's box is not finite or a leaf has more than 255 blocks.
+/// std::nullopt when a leaf has more than 255 blocks. The result is canonical, so the
+/// device's rk_quantize_nodes (kernels/raykit/kernels/quantize.hpp) gives the same bytes: per
+/// axis the origin is the children's lowest plane, the exponent the smallest from
+/// frexp(extent) − 8 up at which every high plane's byte fits, a low plane's byte the largest
+/// whose plane is not above it, a high plane's the smallest whose plane is not below it.
 inline std::optional<QuantizedNode> quantize_node(const DeviceNode& n) {
     QuantizedNode out{};
     for (int c = 0; c < kDeviceWidth; ++c) {
         if (n.unused(c)) continue;
         if (n.count[c] > 255u) return std::nullopt;
-        for (int r = 0; r < 6; ++r)
-            if (!std::isfinite(n.planes[r][c])) return std::nullopt;
         out.used = static_cast<std::uint8_t>(out.used | (1u << c));
         out.index[c] = n.index[c];
         out.count[c] = static_cast<std::uint8_t>(n.count[c]);
     }
     if (out.used == 0) return out;
     for (int a = 0; a < 3; ++a) {
+        float clo[kDeviceWidth] = {}, chi[kDeviceWidth] = {};
         float lo = std::numeric_limits<float>::infinity(), hi = -lo;
         for (int c = 0; c < kDeviceWidth; ++c)
             if ((out.used >> c) & 1u) {
-                lo = std::min(lo, n.planes[2 * a][c]);
-                hi = std::max(hi, n.planes[2 * a + 1][c]);
+                clo[c] = detail::quantize_input(n.planes[2 * a][c], false);
+                chi[c] = detail::quantize_input(n.planes[2 * a + 1][c], true);
+                lo = std::min(lo, clo[c]);
+                hi = std::max(hi, chi[c]);
             }
-        // The smallest step whose 255 steps span the extent (as rounded), then larger ones until
-        // every plane's outward byte fits: the largest q below a low plane, the smallest above a
-        // high one (planes decode monotonically in q, so both are found by stepping).
-        const float extent = hi - lo;
+        const float extent = hi - lo;  // +inf past FLT_MAX; negative when every child is empty
         int e = -126;
-        if (!std::isfinite(extent)) {
-            e = 121;  // an extent past FLT_MAX: 255·2^121 is still below it
+        if (extent == std::numeric_limits<float>::infinity()) {
+            e = 121;  // 255·2^121 is below FLT_MAX, 255·2^122 above
         } else if (extent > 0.0f) {
             int x = 0;
-            std::frexp(extent / 255.0f, &x);  // extent/255 < 2^x
-            e = std::max(-126, std::min(127, x));
+            std::frexp(extent, &x);  // extent < 2^x, so 255·2^(x−7) > extent
+            e = std::max(-126, std::min(127, x - 8));
         }
         for (;; ++e) {
             const float step = quantized_step(e);
+            const float inv = e < 127 ? quantized_step(-e) : 0.0f;  // a first guess only
             bool fits = true;
             for (int c = 0; c < kDeviceWidth && fits; ++c) {
                 if (!((out.used >> c) & 1u)) continue;
-                const float clo = n.planes[2 * a][c], chi = n.planes[2 * a + 1][c];
-                int ql = static_cast<int>(std::min(255.0f, std::floor((clo - lo) / step)));
-                ql = std::max(ql, 0);
-                while (ql > 0 && quantized_plane(lo, std::uint8_t(ql), step) > clo) --ql;
-                while (ql < 255 && quantized_plane(lo, std::uint8_t(ql + 1), step) <= clo) ++ql;
-                int qh = static_cast<int>(std::min(255.0f, std::max(0.0f, std::ceil((chi - lo) / step))));
-                while (qh > 0 && quantized_plane(lo, std::uint8_t(qh - 1), step) >= chi) --qh;
-                while (qh < 255 && quantized_plane(lo, std::uint8_t(qh), step) < chi) ++qh;
-                if (quantized_plane(lo, std::uint8_t(qh), step) < chi) {
+                int ql = static_cast<int>(std::min(255.0f, std::floor((clo[c] - lo) * inv)));
+                while (ql > 0 && quantized_plane(lo, std::uint8_t(ql), step) > clo[c]) --ql;
+                while (ql < 255 && quantized_plane(lo, std::uint8_t(ql + 1), step) <= clo[c]) ++ql;
+                int qh = static_cast<int>(std::min(255.0f, std::max(0.0f, std::ceil((chi[c] - lo) * inv))));
+                while (qh > 0 && quantized_plane(lo, std::uint8_t(qh - 1), step) >= chi[c]) --qh;
+                while (qh < 255 && quantized_plane(lo, std::uint8_t(qh), step) < chi[c]) ++qh;
+                if (quantized_plane(lo, std::uint8_t(qh), step) < chi[c]) {
                     fits = false;
                     break;
                 }

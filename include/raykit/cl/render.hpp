@@ -297,9 +297,10 @@ constexpr bool hook_packets(bool packet_walk) noexcept {
 /// cut-out leaf filter when `cut_outs`), the walk (and the packet walk when `packets`: the
 /// closest-hit and shadow kernels then take kPacketRays rays per work-item), the shade API, the
 /// hook, the check of its params size, its shade kernel rk_dr_shade_NAME (cached per process).
-/// `packets` is taken through hook_packets.
+/// `packets` is taken through hook_packets; the walks read nodes of the form `form` (the scene's
+/// DeviceSceneArrays::node_form()).
 template <RayHook H>
-Program ray_hook_program(Device& dev, bool cut_outs = false, bool packets = false) {
+Program ray_hook_program(Device& dev, bool cut_outs = false, bool packets = false, NodeForm form = NodeForm::full) {
     const std::string name = H::name;
     detail::check_ray_hook_name(name);
     std::vector<SourcePart> parts = base_parts();
@@ -309,7 +310,7 @@ Program ray_hook_program(Device& dev, bool cut_outs = false, bool packets = fals
     if (cut_outs) parts.push_back({"<alpha cut-outs>", "#define RK_LEAF_FILTER 1\n"});
     parts.push_back({"raykit/kernels/camera.hpp", kernels::kCamera});
     parts.push_back({"raykit/kernels/shade.hpp (data)", kernels::kShadeData});
-    for (SourcePart& p : trace_parts(packets, TraceKernels::none)) parts.push_back(std::move(p));
+    for (SourcePart& p : trace_parts(packets, TraceKernels::none, form)) parts.push_back(std::move(p));
     parts.push_back({"raykit/kernels/shade.hpp", kernels::kShade});
     parts.push_back({"<hook " + name + ">", H::source});
     const std::string size = std::to_string(sizeof(typename H::Params));
@@ -339,11 +340,12 @@ public:
         set_lights(lights);
     }
     /// Uploads `scene` (from make_shade_scene / RenderScene::view) into a DeviceScene of its own:
-    /// the scene need not outlive the renderer (instances and vertices as they are now).
-    DeviceRenderer(Device& dev, const ShadeScene& scene) : dev_(&dev) {
+    /// the scene need not outlive the renderer (instances and vertices as they are now); its walks
+    /// read nodes of the form `form` where the trees allow it.
+    DeviceRenderer(Device& dev, const ShadeScene& scene, NodeForm form = NodeForm::full) : dev_(&dev) {
         if (!scene.scene)
             throw std::invalid_argument("raykit::cl::DeviceRenderer: incomplete ShadeScene (use make_shade_scene)");
-        auto own = std::make_unique<DeviceScene<>>(dev, *scene.scene);
+        auto own = std::make_unique<DeviceScene<>>(dev, *scene.scene, DeviceRebuild{}, form);
         own->update();
         scene_ = own.get();
         own_ = std::move(own);
@@ -458,7 +460,7 @@ public:
                 hits_.reserve(dev, n);
                 steps_.reserve(dev, want_steps ? n : 1);
                 set_args(k.closest, sc.top_nodes(), sc.top_count(), sc.top_ids(), sc.instances(), sc.objects(),
-                         sc.nodes(), sc.blocks(), sc.triangles(), queue_, hits_, steps_,
+                         sc.walk_nodes(), sc.blocks(), sc.triangles(), queue_, hits_, steps_,
                          static_cast<std::uint32_t>(n), sc.vertices(), material_ids_, shade_objects_, materials_,
                          textures_, texels_, rec);
                 launch(dev.queue(), k.closest, k.trace_items(n), kTraceGroupSize,
@@ -489,7 +491,7 @@ public:
                 const std::size_t shadow_n = std::min<std::size_t>(cnt[1], shadow_cap);
                 if (shadow_n > 0) {
                     set_args(k.shadow, sc.top_nodes(), sc.top_count(), sc.top_ids(), sc.instances(), sc.objects(),
-                             sc.nodes(), sc.blocks(), sc.triangles(), shadow_,
+                             sc.walk_nodes(), sc.blocks(), sc.triangles(), shadow_,
                              static_cast<std::uint32_t>(shadow_cap), image_, sc.vertices(), material_ids_,
                              shade_objects_, materials_, textures_, texels_, rec,
                              one_per_pixel != 0 && max_shadows <= 1 ? 1u : 0u);
@@ -610,12 +612,13 @@ private:
     template <RayHook H>
     Kernels& kernels_for() {
         const bool packets = hook_packets<H>(packets_);
+        const NodeForm form = scene_->node_form();
         const std::string key = std::string(alpha_testing_ ? "cut-outs\n" : "") + (packets ? "packets\n" : "") +
-                                H::name + '\n' + H::source;
+                                (form == NodeForm::quantized ? "quantized\n" : "") + H::name + '\n' + H::source;
         if (auto it = kernels_.find(key); it != kernels_.end()) return it->second;
         Kernels k;
         k.packets = packets;
-        k.program = ray_hook_program<H>(*dev_, alpha_testing_, packets);
+        k.program = ray_hook_program<H>(*dev_, alpha_testing_, packets, form);
         k.camera = k.program.kernel("rk_dr_camera");
         k.closest = k.program.kernel(packets ? "rk_dr_closest_packet" : "rk_dr_closest");
         k.shadow = k.program.kernel(packets ? "rk_dr_shadow_packet" : "rk_dr_shadow");
