@@ -45,6 +45,7 @@
 //   cl_frame/torus100k/device   one frame of a 100k-triangle dynamic mesh: wave vertex hook,
 //                         one-pass refit, top level, 1024x1024 camera rays (1 Mray) traced closest;
 //                         counters vertex_ms, refit_ms, tlas_ms, trace_ms
+//   cl_frame/torus100k/device_q the same walking quantized nodes (their quantize stage: quantize_ms)
 //   cl_frame/torus100k/cpu      the same frame on the CPU twins (2 threads for vertices and rays)
 //
 //   cmake --build build-bench --target bench_cl
@@ -322,7 +323,7 @@ struct FrameSetup {
     raykit::Scene scene;
     std::uint32_t object = 0;
     raykit::Camera camera;
-    std::unique_ptr<rcl::DeviceScene<rcl::WaveHook>> ds;
+    std::unique_ptr<rcl::DeviceScene<rcl::WaveHook>> ds, dq;  ///< full / quantized nodes
     rcl::Buffer<raykit::Ray> rays;
     rcl::Buffer<raykit::Hit> hits;
 };
@@ -341,37 +342,43 @@ FrameSetup& frame_setup(rcl::Device* dev) {
         f->camera = raykit::camera_looking_at(box, kFrameSide, kFrameSide);
     }
     if (dev && !f->ds) {
-        f->ds = std::make_unique<rcl::DeviceScene<rcl::WaveHook>>(*dev, f->scene);
-        f->ds->set_hook<rcl::WaveHook>(f->object, {});
-        f->ds->update();
-        f->ds->camera_rays(f->camera.frame(), f->rays);
-        f->ds->closest(f->rays, f->hits, f->rays.size());
+        for (const rcl::NodeForm form : {rcl::NodeForm::full, rcl::NodeForm::quantized}) {
+            auto& ds = form == rcl::NodeForm::full ? f->ds : f->dq;
+            ds = std::make_unique<rcl::DeviceScene<rcl::WaveHook>>(*dev, f->scene, rcl::DeviceRebuild{}, form);
+            ds->set_hook<rcl::WaveHook>(f->object, {});
+            ds->update();
+            ds->camera_rays(f->camera.frame(), f->rays);
+            ds->closest(f->rays, f->hits, f->rays.size());
+        }
         dev->finish();
     }
     return *f;
 }
 
-void BM_FrameDevice(benchmark::State& state) {
+void BM_FrameDevice(benchmark::State& state, rcl::NodeForm form) {
     rcl::Device* dev = device_or_skip(state);
     if (!dev) return;
     FrameSetup& f = frame_setup(dev);
-    double vertex = 0, refit = 0, tlas = 0, trace = 0;
+    rcl::DeviceScene<rcl::WaveHook>& ds = form == rcl::NodeForm::full ? *f.ds : *f.dq;
+    double vertex = 0, refit = 0, quantize = 0, tlas = 0, trace = 0;
     float time = 0.0f;
     for (auto _ : state) {
-        f.ds->set_hook<rcl::WaveHook>(f.object, {.time = time += 0.1f});
-        const rcl::FrameTimes ft = f.ds->update(rcl::RefitMethod::one_pass);
+        ds.set_hook<rcl::WaveHook>(f.object, {.time = time += 0.1f});
+        const rcl::FrameTimes ft = ds.update(rcl::RefitMethod::one_pass);
         const auto t0 = clock_type::now();
-        f.ds->camera_rays(f.camera.frame(), f.rays);
-        f.ds->closest(f.rays, f.hits, f.rays.size());
+        ds.camera_rays(f.camera.frame(), f.rays);
+        ds.closest(f.rays, f.hits, f.rays.size());
         dev->finish();
         trace += ms_since(t0);
         vertex += ft.vertex_ms;
         refit += ft.refit_ms;
+        quantize += ft.quantize_ms;
         tlas += ft.top_level_ms;
     }
     const double it = double(state.iterations());
     state.counters["vertex_ms"] = vertex / it;
     state.counters["refit_ms"] = refit / it;
+    state.counters["quantize_ms"] = quantize / it;
     state.counters["tlas_ms"] = tlas / it;
     state.counters["trace_ms"] = trace / it;
     state.counters["Mrays/s"] = double(f.rays.size()) * 1e-3 / (trace / it);
@@ -494,7 +501,8 @@ const bool registered = [] {
     }
     benchmark::RegisterBenchmark("cl_program/first", BM_ProgramFirst)->Iterations(3)->UseRealTime()->Unit(benchmark::kMillisecond);
     benchmark::RegisterBenchmark("cl_program/cached", BM_ProgramCached)->UseRealTime()->Unit(benchmark::kMicrosecond);
-    benchmark::RegisterBenchmark("cl_frame/torus100k/device", BM_FrameDevice)->UseRealTime()->MinTime(1.0)->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("cl_frame/torus100k/device", BM_FrameDevice, rcl::NodeForm::full)->UseRealTime()->MinTime(1.0)->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("cl_frame/torus100k/device_q", BM_FrameDevice, rcl::NodeForm::quantized)->UseRealTime()->MinTime(1.0)->Unit(benchmark::kMillisecond);
     benchmark::RegisterBenchmark("cl_frame/torus100k/cpu", BM_FrameCpu)->UseRealTime()->MinTime(1.0)->Unit(benchmark::kMillisecond);
     return true;
 }();

@@ -3,7 +3,8 @@
 // Cases: render/<scene>/<variant>/spp:<N>/threads:<T> (CPU, render_cpu) and
 //        render/<scene>/<variant>/spp:<N>/device:cl (raykit::cl::DeviceRenderer on
 //        raykit::cl::Device::shared(): PoCL's CPU device here; RAYKIT_CL_DEVICE to choose;
-//        built when CMake finds OpenCL), 640 x 480, one point light, the same images.
+//        built when CMake finds OpenCL), 640 x 480, one point light, the same images;
+//        device:cl_q the same renderer walking quantized nodes (NodeForm::quantized), 1 spp.
 //   scene    thesis  RAYKIT_SHARED_DATA_DIR/obj/thesis_scene/Scene.obj (24k triangles, 24 textured
 //                    materials), camera (20, 8, 24) -> (0, 2.5, 0), fov 45, light at (-25, 35, 30)
 //                    (the view of docs/thesis_scene.png). Its MTL has RGBA foliage textures, but no
@@ -76,6 +77,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -349,15 +351,18 @@ void run(benchmark::State& state, const std::string& scene, const std::string& v
 #if defined(RAYKIT_BENCH_HAVE_CL)
 /// The device renderer of a scene, made once (upload into its own DeviceScene: every object and
 /// instance, the goblin as moved on the CPU) per (scene, mirror) pair.
-raykit::cl::DeviceRenderer* device_renderer(const std::string& name, bool mirror, const BenchScene& s) {
+raykit::cl::DeviceRenderer* device_renderer(const std::string& name, bool mirror, const BenchScene& s,
+                                            raykit::cl::NodeForm form) {
     raykit::cl::Device& dev = raykit::cl::Device::shared();  // made first, so it outlives the cache
-    static std::map<std::pair<std::string, bool>, std::unique_ptr<raykit::cl::DeviceRenderer>> cache;
-    auto& r = cache[std::make_pair(name, mirror)];
-    if (!r) r = std::make_unique<raykit::cl::DeviceRenderer>(dev, s.rs.view());
+    static std::map<std::tuple<std::string, bool, raykit::cl::NodeForm>, std::unique_ptr<raykit::cl::DeviceRenderer>>
+        cache;
+    auto& r = cache[std::make_tuple(name, mirror, form)];
+    if (!r) r = std::make_unique<raykit::cl::DeviceRenderer>(dev, s.rs.view(), form);
     return r.get();
 }
 
-void run_device(benchmark::State& state, const std::string& scene, const std::string& variant, unsigned spp) {
+void run_device(benchmark::State& state, const std::string& scene, const std::string& variant, unsigned spp,
+                raykit::cl::NodeForm form) {
     const BenchScene* s = bench_scene(scene, variant == "mirror");
     if (!s) {
         state.SkipWithError((scene + ": data file not found under " RAYKIT_SHARED_DATA_DIR).c_str());
@@ -365,7 +370,7 @@ void run_device(benchmark::State& state, const std::string& scene, const std::st
     }
     raykit::cl::DeviceRenderer* r = nullptr;
     try {
-        r = device_renderer(scene, variant == "mirror", *s);
+        r = device_renderer(scene, variant == "mirror", *s, form);
     } catch (const std::exception& e) {
         state.SkipWithError((std::string("no OpenCL device: ") + e.what()).c_str());
         return;
@@ -742,11 +747,15 @@ const bool registered = [] {
                         ->MinTime(spp == 1 ? 1.0 : 2.0);
 #if defined(RAYKIT_BENCH_HAVE_CL)
                 if (va == "animate") continue;  // the CPU frame loop's case (raykit animate --device cl has the device's)
-                benchmark::RegisterBenchmark((base + "/device:cl").c_str(),
-                                             [=](benchmark::State& st) { run_device(st, scene, variant, spp); })
-                    ->Unit(benchmark::kMillisecond)
-                    ->UseRealTime()
-                    ->MinTime(spp == 1 ? 1.0 : 2.0);
+                for (const raykit::cl::NodeForm form : {raykit::cl::NodeForm::full, raykit::cl::NodeForm::quantized}) {
+                    if (form == raykit::cl::NodeForm::quantized && spp != 1) continue;
+                    benchmark::RegisterBenchmark(
+                        (base + (form == raykit::cl::NodeForm::full ? "/device:cl" : "/device:cl_q")).c_str(),
+                        [=](benchmark::State& st) { run_device(st, scene, variant, spp, form); })
+                        ->Unit(benchmark::kMillisecond)
+                        ->UseRealTime()
+                        ->MinTime(spp == 1 ? 1.0 : 2.0);
+                }
 #endif
             }
 #if defined(RAYKIT_HAVE_EMBREE)
