@@ -135,7 +135,7 @@ class MeshTracer {
 public:
     /// Uploads the tree in the device's form (device_tree() of BlockBvh8::build(mesh, bvh): 8-wide
     /// nodes over 4-triangle blocks), its nodes in the form `form` where they can be (a tree
-    /// with a non-finite box or a leaf of more than 255 blocks stays full: node_form());
+    /// with a leaf of more than 255 blocks stays full: node_form());
     /// `extra_options` go to trace_program().
     MeshTracer(Device& dev, const MeshView& mesh, const Bvh& bvh, const std::string& extra_options = {},
                NodeForm form = NodeForm::full)
@@ -188,7 +188,7 @@ public:
         check_count(rays, n);
         hits.reserve(*dev_, n);
         ::cl::Kernel& k = kernels_.pick(false, packets_);
-        set_trace_args(k, blocks_, node_count_, rays, hits, static_cast<std::uint32_t>(n));
+        set_args(k, walk_nodes(), blocks_, node_count_, rays, hits, static_cast<std::uint32_t>(n));
         launches_ += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
     }
     /// occluded[i] = 1 when rays[i] hits anything in [tmin, tmax], else 0.
@@ -196,7 +196,7 @@ public:
         check_count(rays, n);
         occluded.reserve(*dev_, n);
         ::cl::Kernel& k = kernels_.pick(true, packets_);
-        set_trace_args(k, blocks_, node_count_, rays, occluded, static_cast<std::uint32_t>(n));
+        set_args(k, walk_nodes(), blocks_, node_count_, rays, occluded, static_cast<std::uint32_t>(n));
         launches_ += launch(dev_->queue(), k, trace_items(n, packets_), kTraceGroupSize);
     }
 
@@ -237,11 +237,9 @@ private:
         kernels_ = TraceKernelSet(program_, TraceKernels::mesh, packets_);
         k_camera_ = program_.kernel("rk_camera_rays");
     }
-    /// The kernel's arguments: the nodes in their form, then `rest`.
-    template <class... Rest>
-    void set_trace_args(::cl::Kernel& k, const Rest&... rest) {
-        if (form_ == NodeForm::quantized) set_args(k, qnodes_, rest...);
-        else set_args(k, nodes_, rest...);
+    /// The nodes the walk reads, in node_form() (as DeviceSceneArrays::walk_nodes).
+    const ::cl::Buffer& walk_nodes() const noexcept {
+        return form_ == NodeForm::quantized ? qnodes_.handle() : nodes_.handle();
     }
     static void check_count(const Buffer<Ray>& rays, std::size_t n) {
         if (n > rays.size()) throw std::out_of_range("raykit::cl::MeshTracer: more rays asked for than the buffer holds");
