@@ -707,22 +707,44 @@ std::vector<Ray> packet_test_rays(const Mesh& m, std::size_t n_random, std::uint
     return rays;
 }
 
-/// The packet walk's answers on `rays` (closest hits, any-hit flags) and the number of words
-/// (t, u, v, prim, inst of every hit; every any-hit flag) where the single-ray walk's differ.
+/// A tracer's (MeshTracer's, DeviceScene's) answers on a ray set: closest hits, any-hit flags.
+struct Answers {
+    std::vector<Hit> hits;
+    std::vector<std::uint32_t> any;
+    std::size_t hit_count() const {
+        return std::size_t(std::count_if(hits.begin(), hits.end(), [](const Hit& h) { return h.valid(); }));
+    }
+};
+
+/// `tracer`'s answers on `rays`, walked as packets or ray by ray.
+template <class Tracer>
+Answers answers(Tracer& tracer, const std::vector<Ray>& rays, bool packets) {
+    tracer.set_packet_walk(packets);
+    Answers a;
+    a.hits = tracer.closest(rays);
+    a.any = tracer.any(rays);
+    return a;
+}
+
+/// The words (t, u, v, prim, inst of every hit; every any-hit flag) where two answer sets differ.
+std::size_t words_differ(const Answers& a, const Answers& b) {
+    std::size_t d = a.hits.size() != b.hits.size() || a.any.size() != b.any.size() ? 1 : 0;
+    for (std::size_t i = 0; i < std::min(a.hits.size(), b.hits.size()); ++i) {
+        const Hit &x = a.hits[i], &y = b.hits[i];
+        d += !same_bits(x.t, y.t) + !same_bits(x.u, y.u) + !same_bits(x.v, y.v) + (x.prim != y.prim) + (x.inst != y.inst);
+    }
+    for (std::size_t i = 0; i < std::min(a.any.size(), b.any.size()); ++i) d += a.any[i] != b.any[i];
+    return d;
+}
+
+/// The packet walk's closest hits on `rays` and the words where the single-ray walk's answers
+/// differ (words_differ).
 template <class Tracer>
 std::pair<std::vector<Hit>, std::size_t> packet_vs_single(Tracer& tracer, const std::vector<Ray>& rays) {
-    tracer.set_packet_walk(false);
-    const std::vector<Hit> a = tracer.closest(rays);
-    const std::vector<std::uint32_t> oa = tracer.any(rays);
-    tracer.set_packet_walk(true);
-    std::vector<Hit> b = tracer.closest(rays);
-    const std::vector<std::uint32_t> ob = tracer.any(rays);
-    std::size_t d = a.size() != b.size() || oa.size() != ob.size() ? 1 : 0;
-    for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i)
-        d += !same_bits(a[i].t, b[i].t) + !same_bits(a[i].u, b[i].u) + !same_bits(a[i].v, b[i].v) +
-             (a[i].prim != b[i].prim) + (a[i].inst != b[i].inst);
-    for (std::size_t i = 0; i < std::min(oa.size(), ob.size()); ++i) d += oa[i] != ob[i];
-    return {std::move(b), d};
+    const Answers single = answers(tracer, rays, false);
+    Answers packets = answers(tracer, rays, true);
+    const std::size_t d = words_differ(single, packets);
+    return {std::move(packets.hits), d};
 }
 
 }  // namespace
@@ -797,18 +819,9 @@ TEST(ClTrace, QuantizedNodesGiveTheFullNodesAnswersBitForBit) {
         rcl::MeshTracer full(dev, c.mesh, bvh);
         rcl::MeshTracer quant(dev, c.mesh, bvh, {}, rcl::NodeForm::quantized);
         ASSERT_EQ(quant.node_form(), rcl::NodeForm::quantized) << c.name;
-        full.set_packet_walk(false);
-        const std::vector<Hit> a = full.closest(c.rays);
-        const std::vector<std::uint32_t> oa = full.any(c.rays);
-        const auto [b, packet_d] = packet_vs_single(quant, c.rays);  // quantized: packets vs single rays
-        quant.set_packet_walk(false);
-        const std::vector<std::uint32_t> ob = quant.any(c.rays);
-        std::size_t d = 0, hits = 0;
-        for (std::size_t i = 0; i < c.rays.size(); ++i) {
-            d += !same_bits(a[i].t, b[i].t) + !same_bits(a[i].u, b[i].u) + !same_bits(a[i].v, b[i].v) +
-                 (a[i].prim != b[i].prim) + (a[i].inst != b[i].inst) + (oa[i] != ob[i]);
-            hits += a[i].valid();
-        }
+        const Answers a = answers(full, c.rays, false), q = answers(quant, c.rays, false);
+        const std::size_t d = words_differ(a, q), packet_d = words_differ(q, answers(quant, c.rays, true));
+        const std::size_t hits = a.hit_count();
         std::printf("[ info ] %s: %zu rays, %zu hits; quantized vs full: %zu words differ; quantized packets vs "
                     "single rays: %zu\n",
                     c.name.c_str(), c.rays.size(), hits, d, packet_d);
@@ -1013,18 +1026,9 @@ TEST(ClScene, QuantizedNodesAreTheHostsBytesAndGiveTheFullAnswers) {
             nodes += fn.size();
         }
         const std::vector<Ray> rays = packet_test_rays(s.world_mesh().first, 1501, 61 + frame);
-        full.set_packet_walk(false);
-        const std::vector<Hit> a = full.closest(rays);
-        const std::vector<std::uint32_t> oa = full.any(rays);
-        const auto [b, packet_d] = packet_vs_single(quant, rays);
-        quant.set_packet_walk(false);
-        const std::vector<std::uint32_t> ob = quant.any(rays);
-        std::size_t d = 0, hits = 0;
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            d += !same_bits(a[i].t, b[i].t) + !same_bits(a[i].u, b[i].u) + !same_bits(a[i].v, b[i].v) +
-                 (a[i].prim != b[i].prim) + (a[i].inst != b[i].inst) + (oa[i] != ob[i]);
-            hits += a[i].valid();
-        }
+        const Answers a = answers(full, rays, false), q = answers(quant, rays, false);
+        const std::size_t d = words_differ(a, q), packet_d = words_differ(q, answers(quant, rays, true));
+        const std::size_t hits = a.hit_count();
         std::printf("[ info ] frame %d: %zu nodes, %zu differ from the host's quantize_node; %zu rays, %zu hits, "
                     "quantized vs full %zu words differ, quantized packets vs single rays %zu\n",
                     frame, nodes, differ, rays.size(), hits, d, packet_d);

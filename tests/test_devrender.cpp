@@ -893,28 +893,46 @@ TEST(DeviceRender, MovedInstanceNeedsDeviceUpdateThenRendersTheNewPlacement) {
     EXPECT_GE(compare(cpu_render(sc.rs, sc.cam, s), r.render(sc.cam, s)).fraction_ok(), 0.999);
 }
 
-TEST(DeviceRender, DynamicSceneMovedAndRenderedOnTheDeviceMatchesTheCpu) {
-    RAYKIT_REQUIRE_DEVICE(dev);
+namespace {
+
+/// A floor and a textured dynamic sphere instanced twice (as it is: an identity instance, not
+/// mapped; and rotated past pi and scaled), a point light and an 80 x 60 camera: the scene the
+/// dynamic render tests bend with BendHook.
+struct BendScene {
     Texture tex = checker(8, 8);
     RenderScene rs;
-    SceneBuilder f;
-    const auto fm = f.material(make_material(vec3(0.7f, 0.7f, 0.6f)));
-    f.quad({-5, 0, -5}, {5, 0, -5}, {5, 0, 5}, {-5, 0, 5}, fm);
-    const auto floor = rs.add_object(std::move(f.m));
-    const auto body = rs.add_object(textured_sphere(), ObjectKind::dynamic);
-    rs.materials[body].materials[0].map_kd = &tex;
-    rs.materials[body].materials[0].update_derived();
-    rs.scene.add_instance(floor);
-    rs.scene.add_instance(body, mat4(1.0f));  // identity: not mapped
-    rs.scene.add_instance(body, place({2.0f, 1.2f, -1.0f}, 190.0f, {0.2f, 1.0f, 0.1f}, vec3(0.9f, 0.6f, 1.1f)));
-    rs.scene.update_top_level();
+    std::uint32_t body = 0;
     Camera cam;
-    cam.position = {0.8f, 3.0f, 6.0f};
-    cam.target = {0.6f, 0.8f, 0.0f};
-    cam.width = 80;
-    cam.height = 60;
-    rs.lights.push_back(Light::point({2.0f, 5.0f, 3.0f}, vec3(0.9f)));
+    BendScene() {
+        SceneBuilder f;
+        const auto fm = f.material(make_material(vec3(0.7f, 0.7f, 0.6f)));
+        f.quad({-5, 0, -5}, {5, 0, -5}, {5, 0, 5}, {-5, 0, 5}, fm);
+        const auto floor = rs.add_object(std::move(f.m));
+        body = rs.add_object(textured_sphere(), ObjectKind::dynamic);
+        rs.materials[body].materials[0].map_kd = &tex;
+        rs.materials[body].materials[0].update_derived();
+        rs.scene.add_instance(floor);
+        rs.scene.add_instance(body, mat4(1.0f));
+        rs.scene.add_instance(body, place({2.0f, 1.2f, -1.0f}, 190.0f, {0.2f, 1.0f, 0.1f}, vec3(0.9f, 0.6f, 1.1f)));
+        rs.scene.update_top_level();
+        cam.position = {0.8f, 3.0f, 6.0f};
+        cam.target = {0.6f, 0.8f, 0.0f};
+        cam.width = 80;
+        cam.height = 60;
+        rs.lights.push_back(Light::point({2.0f, 5.0f, 3.0f}, vec3(0.9f)));
+    }
+    BendScene(const BendScene&) = delete;
+    BendScene& operator=(const BendScene&) = delete;
+};
 
+}  // namespace
+
+TEST(DeviceRender, DynamicSceneMovedAndRenderedOnTheDeviceMatchesTheCpu) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    BendScene b;
+    RenderScene& rs = b.rs;
+    const std::uint32_t body = b.body;
+    const Camera& cam = b.cam;
     rcl::DeviceScene<BendHook> ds(dev, rs.scene);
     rcl::DeviceRenderer r(ds, rs.materials, rs.lights);
     EXPECT_THROW(r.render(cam, ShadeSettings{}), std::logic_error) << "rendered before update()";
@@ -962,25 +980,10 @@ TEST(DeviceRender, DynamicSceneMovedAndRenderedOnTheDeviceMatchesTheCpu) {
 // and shadows, AO and normals, 2 spp.
 TEST(DeviceRender, QuantizedNodesRenderTheFullNodesImages) {
     RAYKIT_REQUIRE_DEVICE(dev);
-    Texture tex = checker(8, 8);
-    RenderScene rs;
-    SceneBuilder f;
-    const auto fm = f.material(make_material(vec3(0.7f, 0.7f, 0.6f)));
-    f.quad({-5, 0, -5}, {5, 0, -5}, {5, 0, 5}, {-5, 0, 5}, fm);
-    const auto floor = rs.add_object(std::move(f.m));
-    const auto body = rs.add_object(textured_sphere(), ObjectKind::dynamic);
-    rs.materials[body].materials[0].map_kd = &tex;
-    rs.materials[body].materials[0].update_derived();
-    rs.scene.add_instance(floor);
-    rs.scene.add_instance(body, mat4(1.0f));
-    rs.scene.add_instance(body, place({2.0f, 1.2f, -1.0f}, 190.0f, {0.2f, 1.0f, 0.1f}, vec3(0.9f, 0.6f, 1.1f)));
-    rs.scene.update_top_level();
-    Camera cam;
-    cam.position = {0.8f, 3.0f, 6.0f};
-    cam.target = {0.6f, 0.8f, 0.0f};
-    cam.width = 80;
-    cam.height = 60;
-    rs.lights.push_back(Light::point({2.0f, 5.0f, 3.0f}, vec3(0.9f)));
+    BendScene b;
+    RenderScene& rs = b.rs;
+    const std::uint32_t body = b.body;
+    const Camera& cam = b.cam;
     rcl::DeviceScene<BendHook> full(dev, rs.scene);
     rcl::DeviceScene<BendHook> quant(dev, rs.scene, {}, rcl::NodeForm::quantized);
     ASSERT_EQ(quant.node_form(), rcl::NodeForm::quantized);

@@ -120,13 +120,14 @@ RK_INLINE bool rk_slab(const rk_slab_ray* s, __global const rk_node* n, float tm
 #else
 #error "RK_WIDTH must be 4 or 8"
 #endif
-RK_INLINE uint rk_wslab(const rk_slab_ray* s, __global const rk_wnode* n, float tmax, float* td) {
-    __global const float* f = (__global const float*)n;
+/* The test of rk_wslab and rk_qslab, given the children's near (n*) and far (f*) planes per axis. */
+RK_INLINE uint rk_wslab_planes(const rk_slab_ray* s, const RK_FW n0, const RK_FW f0, const RK_FW n1, const RK_FW f1,
+                               const RK_FW n2, const RK_FW f2, float tmax, float* td) {
     RK_FW t0 = (RK_FW)(s->tmin), t1 = (RK_FW)(tmax);
 #define RK_WSLAB_AXIS(a)                                                            \
     {                                                                               \
-        const RK_FW tn = (RK_VLOADW(0, f + s->wnear[a]) - s->org[a]) * s->inv[a];  \
-        const RK_FW tf = (RK_VLOADW(0, f + s->wfar[a]) - s->org[a]) * s->inv[a];   \
+        const RK_FW tn = (n##a - s->org[a]) * s->inv[a];                            \
+        const RK_FW tf = (f##a - s->org[a]) * s->inv[a];                            \
         t0 = select(t0, tn, isgreater(tn, t0));                                     \
         t1 = select(t1, tf, isless(tf, t1));                                        \
     }
@@ -144,37 +145,30 @@ RK_INLINE uint rk_wslab(const rk_slab_ray* s, __global const rk_wnode* n, float 
     return (uint)(h2.x | h2.y);
 }
 
+RK_INLINE uint rk_wslab(const rk_slab_ray* s, __global const rk_wnode* n, float tmax, float* td) {
+    __global const float* f = (__global const float*)n;
+    return rk_wslab_planes(s, RK_VLOADW(0, f + s->wnear[0]), RK_VLOADW(0, f + s->wfar[0]), RK_VLOADW(0, f + s->wnear[1]),
+                           RK_VLOADW(0, f + s->wfar[1]), RK_VLOADW(0, f + s->wnear[2]), RK_VLOADW(0, f + s->wfar[2]),
+                           tmax, td);
+}
+
 /* 2^e for a quantized node's exponent e in [-126, 127] (raykit::cl::quantized_step). */
 RK_INLINE float rk_qstep(const char e) { return as_float((uint)((int)e + 127) << 23); }
 
-/* rk_wslab on a quantized node: each plane decoded as the host's quantized_plane does it
-   (origin + q * 2^e: the product is exact, so fusing changes nothing), then the same
-   arithmetic; unused slots are masked by `used` (they decode to a point). */
+/* The row of a quantized node's planes at offset `offset` (rk_slab_ray's wnear / wfar) on axis
+   `a`, decoded as the host's quantized_plane does it: origin + q * 2^e (the product is exact,
+   so fusing changes nothing). */
+RK_INLINE RK_FW rk_qrow(__global const rk_qnode* n, const int offset, const int a) {
+    return RK_CONVERT_FW(RK_VLOADW(0, (__global const uchar*)n->q + offset)) * rk_qstep(n->exponent[a]) + n->origin[a];
+}
+
+/* rk_wslab on a quantized node: the same test of the decoded planes; unused slots are masked by
+   `used` (they decode to a point). */
 RK_INLINE uint rk_qslab(const rk_slab_ray* s, __global const rk_qnode* n, float tmax, float* td) {
-    __global const uchar* q = (__global const uchar*)n->q;
-    RK_FW t0 = (RK_FW)(s->tmin), t1 = (RK_FW)(tmax);
-#define RK_QSLAB_AXIS(a)                                                                        \
-    {                                                                                           \
-        const float o = n->origin[a], st = rk_qstep(n->exponent[a]);                            \
-        const RK_FW pn = RK_CONVERT_FW(RK_VLOADW(0, q + s->wnear[a])) * st + o;                 \
-        const RK_FW pf = RK_CONVERT_FW(RK_VLOADW(0, q + s->wfar[a])) * st + o;                  \
-        const RK_FW tn = (pn - s->org[a]) * s->inv[a];                                          \
-        const RK_FW tf = (pf - s->org[a]) * s->inv[a];                                          \
-        t0 = select(t0, tn, isgreater(tn, t0));                                                 \
-        t1 = select(t1, tf, isless(tf, t1));                                                    \
-    }
-    RK_QSLAB_AXIS(2) RK_QSLAB_AXIS(1) RK_QSLAB_AXIS(0)
-#undef RK_QSLAB_AXIS
-    t1 = t1 * RK_SLAB_EXIT_SCALE;
-    RK_VSTOREW(t0, 0, td);
-#if RK_WIDTH == 8
-    const int8 h = islessequal(t0, t1) & (int8)(1, 2, 4, 8, 16, 32, 64, 128);
-    const int4 h4 = h.lo | h.hi;
-#else
-    const int4 h4 = islessequal(t0, t1) & (int4)(1, 2, 4, 8);
-#endif
-    const int2 h2 = h4.lo | h4.hi;
-    return (uint)(h2.x | h2.y) & (uint)n->used;
+    return rk_wslab_planes(s, rk_qrow(n, s->wnear[0], 0), rk_qrow(n, s->wfar[0], 0), rk_qrow(n, s->wnear[1], 1),
+                           rk_qrow(n, s->wfar[1], 1), rk_qrow(n, s->wnear[2], 2), rk_qrow(n, s->wfar[2], 2), tmax,
+                           td) &
+           (uint)n->used;
 }
 
 /* Plane `row * RK_WIDTH + child` (an offset as rk_slab_ray's wnear / wfar give it) of a
