@@ -2,8 +2,8 @@
 // character rendered frame by frame, alone or inside a static OBJ scene.
 //
 //   raykit animate REF.smd ANIM.smd OUT_%03d.png [--scene STATIC.obj] [--frames N] [--first F]
-//                  [--fps F] [--device cpu|cl] [--width W] [--height H] [--spp N]
-//                  [--camera EX EY EZ TX TY TZ] [--fov DEG] [--light X Y Z R G B]
+//                  [--fps F] [--device cpu|cl] [--nodes full|quantized] [--width W] [--height H]
+//                  [--spp N] [--camera EX EY EZ TX TY TZ] [--fov DEG] [--light X Y Z R G B]
 //                  [--place X Z] [--char-height H] [--yaw DEG] [--threads T] [--max-depth D]
 //
 // Frame k (k = 0 .. N-1) shows the animation at time (first + k) / fps seconds,
@@ -127,7 +127,7 @@ struct AnimateArgs {
     float char_height = 1.8f;
     float yaw = -50.0f;  ///< faces the default camera
     // as parsed, before finish_animate_args
-    std::string device = "cpu";
+    std::string device = "cpu", nodes = "full";
     std::vector<float> camera_values, light_values, place_values;
 };
 
@@ -197,6 +197,7 @@ inline void add_animate_options(CLI::App& app, AnimateArgs& a) {
     app.add_option("--device", a.device, "where the frame runs: cpu (default) or cl (skinning, refit, render on the device)")
         ->type_name("")
         ->check(CLI::IsMember({"cpu", "cl"}));
+    add_nodes_option(app, a.nodes);
     add_image_size_options(app, a.width, a.height);
     app.add_option("--spp", a.spp, "samples per pixel, 1..65536 (default 1)")->type_name("N")->transform(count_in(1, cr::kMaxSpp));
     app.add_option("--max-depth", a.max_depth, "reflection/refraction bounces, 0..1000 (default 2)")
@@ -229,6 +230,7 @@ inline void add_animate_options(CLI::App& app, AnimateArgs& a) {
 /// size, --device cl in a build without OpenCL; the vectors become camera, lights, place.
 inline void finish_animate_args(AnimateArgs& a) {
     a.device_cl = a.device == "cl";
+    check_nodes_option(a.nodes, a.device_cl);
 #if !RAYKIT_CLI_HAVE_CL
     if (a.device_cl) throw UsageError("--device cl: this raykit was built without OpenCL");
 #endif
@@ -375,7 +377,8 @@ inline int run_animate(const AnimateArgs& a) {
     if (a.device_cl) {
         raykit::cl::DeviceRebuild rebuild;  // the CPU frame's policy, on the device
         rebuild.enabled = true;
-        ds.emplace(raykit::cl::Device::shared(), rs.scene, rebuild);
+        ds.emplace(raykit::cl::Device::shared(), rs.scene, rebuild,
+                   a.nodes == "quantized" ? raykit::cl::NodeForm::quantized : raykit::cl::NodeForm::full);
         upload_skin(*ds, rs.scene, body, skin);
         renderer.emplace(*ds, rs.materials, rs.lights);
     }

@@ -17,7 +17,8 @@
 //       OpenCL (RAYKIT_CLI_HAVE_CL).
 //       --device cl renders on the OpenCL device (raykit/cl/render.hpp: every shader, --spp N with
 //       the CPU's sample positions, so the image equals the CPU's) and reports the second frame's
-//       time (the first builds kernels); --threads and --profile apply to the CPU only.
+//       time (the first builds kernels); --threads and --profile apply to the CPU only; --nodes
+//       quantized walks quantized nodes there (the same image).
 //   int raykit_cli_render(int argc, char** argv, int first_arg);
 //       Both for argv[first_arg ..] (the arguments after `render`); a parse error is a UsageError.
 //
@@ -74,7 +75,7 @@ struct RenderArgs {
     std::string scene, out, pfm;
     std::uint32_t width = 640, height = 480;
     unsigned spp = 1, max_depth = 5, ao_samples = 16, threads = 0, leaf_size = 12;
-    std::string shader = "whitted", filter = "bilinear", device = "cpu", builder = "sah";
+    std::string shader = "whitted", filter = "bilinear", device = "cpu", builder = "sah", nodes = "full";
     std::vector<float> camera, up, ambient, background;
     std::vector<float> lights, suns;  ///< 6 values per --light / --sun, in command-line order
     float fov = 45.0f;
@@ -230,6 +231,19 @@ inline void add_builder_option(CLI::App& app, std::string& builder) {
         ->type_name("")
         ->check(CLI::IsMember({"sah", "pairwise", "sortaxis", "ploc"}));
 }
+/// --nodes, the same on every command that can run on the device (checked against --device by
+/// check_nodes_option).
+inline void add_nodes_option(CLI::App& app, std::string& nodes) {
+    app.add_option("--nodes", nodes,
+                   "the device walk's nodes: full (default) or quantized (104 bytes a node, the same image; "
+                   "with --device cl)")
+        ->type_name("")
+        ->check(CLI::IsMember({"full", "quantized"}));
+}
+/// --nodes quantized without --device cl is a usage error.
+inline void check_nodes_option(const std::string& nodes, bool device_cl) {
+    if (nodes == "quantized" && !device_cl) throw UsageError("--nodes quantized: only with --device cl");
+}
 /// --leaf-size (the largest leaf), with the command's own default in `help`; returns the option.
 template <class L>
 CLI::Option* add_leaf_size_option(CLI::App& app, L& leaf_size, const std::string& help) {
@@ -299,6 +313,7 @@ inline void add_render_options(CLI::App& app, RenderArgs& a) {
     app.add_option("--device", a.device, "renderer: cpu (default) or cl (the OpenCL device, the CPU's image)")
         ->type_name("")
         ->check(CLI::IsMember({"cpu", "cl"}));
+    add_nodes_option(app, a.nodes);
     add_builder_option(app, a.builder);
     add_leaf_size_option(app, a.leaf_size, "largest BVH leaf, >= 1 (default 12; leaf cost in blocks of 4)");
     app.add_option("--pfm", a.pfm, "also write linear float RGB (PFM)")->type_name("OUT.pfm");
@@ -315,6 +330,7 @@ inline int run_render(const RenderArgs& a) {
     using Clock = std::chrono::steady_clock;
     auto ms_since = [](Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); };
 
+    check_nodes_option(a.nodes, a.device == "cl");
 #if !defined(RAYKIT_CLI_HAVE_CL)
     if (a.device == "cl")
         throw std::runtime_error("--device cl: the OpenCL renderer is not available yet in this build (use --device cpu)");
@@ -428,7 +444,8 @@ inline int run_render(const RenderArgs& a) {
     if (a.device == "cl") {
         raykit::cl::Device& dev = raykit::cl::Device::shared();
         auto tu = Clock::now();
-        raykit::cl::DeviceRenderer renderer(dev, rs.view());
+        raykit::cl::DeviceRenderer renderer(
+            dev, rs.view(), a.nodes == "quantized" ? raykit::cl::NodeForm::quantized : raykit::cl::NodeForm::full);
         const double upload_ms = ms_since(tu);
         raykit::cl::DeviceRenderStats first, st;
         RenderSettings warm = set;

@@ -631,7 +631,8 @@ static std::pair<std::size_t, std::size_t> png_pixels_apart(const fs::path& a, c
 
 TEST(CliAnimate, DeviceFramesEqualTheCpuFrames) {
     // --device cl runs the whole frame on the device (skinning, refit, top level, render);
-    // its frames are the CPU's within the device renderer's tolerance (<= 2/255 on >= 99.9 %)
+    // its frames are the CPU's within the device renderer's tolerance (<= 2/255 on >= 99.9 %),
+    // and with --nodes quantized the same files byte for byte
     const fs::path dir = write_cube_animation(
         "animate_device", "nodes\n0 \"root\" -1\nend\nskeleton\ntime 0\n0 0 0 0 0 0 0\ntime 1\n0 0.3 0 0.2 0.4 0.3 0.5\nend\n");
     const fs::path ref = dir / "cube.smd", anim = dir / "anim.smd";
@@ -647,10 +648,10 @@ TEST(CliAnimate, DeviceFramesEqualTheCpuFrames) {
 #endif
     for (const std::string& cmd : runs) {
         std::vector<std::string> names;
-        for (const char* device : {"cpu", "cl"}) {
+        for (const std::string device : {"cpu", "cl", "clq"}) {
             std::string c = cmd;
             c.replace(c.find('@'), 1, device);
-            const Result r = run(c + " --device " + device);
+            const Result r = run(c + (device == "clq" ? " --device cl --nodes quantized" : " --device " + device));
             if (r.code != 0 && r.err.find("no OpenCL") != std::string::npos) GTEST_SKIP() << r.err;
             ASSERT_EQ(r.code, 0) << c << ": " << r.err;
         }
@@ -662,11 +663,17 @@ TEST(CliAnimate, DeviceFramesEqualTheCpuFrames) {
             EXPECT_GT(total, 0u) << prefix << n;
             EXPECT_LE(double(bad), 1e-3 * double(total)) << prefix << n << ": " << bad << " of " << total
                                                           << " pixels differ by more than 2/255";
+            EXPECT_EQ(slurp(dir / (prefix + "cl_" + n)), slurp(dir / (prefix + "clq_" + n)))
+                << prefix << n << ": --nodes quantized changed the frame";
         }
         EXPECT_NE(png_pixels_apart(dir / (prefix + "cl_" + std::to_string(first) + ".png"),
                                    dir / (prefix + "cl_" + std::to_string(first + 1) + ".png")).first, 0u)
             << prefix << ": the frames should differ (the animation moves)";
     }
+    std::string cpu_q = runs[0];
+    cpu_q.replace(cpu_q.find('@'), 1, "q");
+    expect_one_error_line(run(cpu_q + " --nodes quantized"), 2, "--nodes quantized: only with --device cl",
+                          "animate --nodes quantized on the CPU");
 }
 #endif
 

@@ -825,8 +825,17 @@ TEST(DeviceRender, CliRendersOnTheDeviceLikeOnTheCpu) {
                                           << e.worst;
         EXPECT_GE(distinct_colours(gi), 2u) << shader;
     }
+    // --nodes quantized: the same image, bit for bit
+    const std::string quant = (dir / "cl_q.pfm").string();
+    std::vector<std::string> q = {obj, quant, "--device", "cl", "--nodes", "quantized", "--spp", "4", "--seed", "3"};
+    q.insert(q.end(), common.begin(), common.end());
+    EXPECT_EQ(run_cli(q), 0);
+    const Diff qd = compare(read_pfm(gpu), read_pfm(quant));
+    EXPECT_EQ(qd.worst, 0.0f) << "--nodes quantized changed the image";
     EXPECT_THROW(run_cli({obj, gpu, "--device", "cl", "--spp", "0", "--quiet"}), RaykitCliRenderUsageError);
     EXPECT_THROW(run_cli({obj, gpu, "--device", "gpu", "--quiet"}), RaykitCliRenderUsageError);
+    EXPECT_THROW(run_cli({obj, gpu, "--nodes", "quantized", "--quiet"}), RaykitCliRenderUsageError) << "without --device cl";
+    EXPECT_THROW(run_cli({obj, gpu, "--device", "cl", "--nodes", "small", "--quiet"}), RaykitCliRenderUsageError);
 }
 
 TEST(DeviceRender, InstancedMultiObjectSceneMatchesTheCpuRenderer) {
