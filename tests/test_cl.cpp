@@ -1053,6 +1053,22 @@ TEST(ClRefit, LevelWiseAndOnePassAreBitIdenticalToCpu) {
     for (std::uint32_t o = 0; o < s.objects().size(); ++o) s.add_instance(o);
     s.update_top_level();
     TestDeviceScene ds(dev, s);
+    // the same frames with quantized nodes: after each refit the device's quantized nodes are the
+    // host's quantize_node of the refitted ones, NaN-emptied leaf boxes included
+    TestDeviceScene dq(dev, s, {}, rcl::NodeForm::quantized);
+    ASSERT_EQ(dq.node_form(), rcl::NodeForm::quantized);
+    std::size_t quantized_checked = 0, quantized_differ = 0;
+    const auto check_quantized = [&] {
+        for (std::uint32_t o : dyn) {
+            const std::vector<rcl::DeviceNode> fn = dq.nodes(o);
+            const std::vector<rcl::QuantizedNode> qn = dq.quantized_nodes(o);
+            for (std::size_t i = 0; i < fn.size(); ++i) {
+                const std::optional<rcl::QuantizedNode> want = rcl::quantize_node(fn[i]);
+                quantized_differ += !want || std::memcmp(&*want, &qn[i], sizeof(rcl::QuantizedNode)) != 0;
+            }
+            quantized_checked += fn.size();
+        }
+    };
     std::printf("[ info ] refit plan: %zu levels, %zu leaves, %zu nodes\n", ds.refit_plan().levels(),
                 ds.refit_plan().leaves(), ds.refit_plan().nodes());
     std::mt19937_64 rng(3);
@@ -1065,6 +1081,7 @@ TEST(ClRefit, LevelWiseAndOnePassAreBitIdenticalToCpu) {
             if (round == 2 && p.size() > 10) p[3].y = nan;  // non-finite vertex: empty triangle boxes
             if (round == 3 && p.size() > 10) p[5] = vec3(-0.0f, 0.0f, -0.0f);
             ds.set_positions(o, p);
+            dq.set_positions(o, p);
             s.set_positions(o, p);
         }
         const auto method = round % 2 ? rcl::RefitMethod::one_pass : rcl::RefitMethod::level_wise;
@@ -1076,7 +1093,14 @@ TEST(ClRefit, LevelWiseAndOnePassAreBitIdenticalToCpu) {
         // the other method on the same vertices gives the same nodes again
         ds.refit(method == rcl::RefitMethod::one_pass ? rcl::RefitMethod::level_wise : rcl::RefitMethod::one_pass);
         for (std::uint32_t o : dyn) expect_nodes_equal(ds, o, s.objects()[o], "second method");
+        dq.update(method);
+        for (std::uint32_t o : dyn) expect_nodes_equal(dq, o, s.objects()[o], "quantized scene");
+        check_quantized();
     }
+    std::printf("[ info ] quantized: %zu nodes checked after refits, %zu differ from the host's\n", quantized_checked,
+                quantized_differ);
+    EXPECT_EQ(quantized_differ, 0u);
+    EXPECT_GT(quantized_checked, 0u);
     EXPECT_EQ(ds.launches().vertex, 0u);
 }
 
