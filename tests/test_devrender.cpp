@@ -827,11 +827,15 @@ TEST(DeviceRender, CliRendersOnTheDeviceLikeOnTheCpu) {
     }
     // --nodes quantized: the same image, bit for bit
     const std::string quant = (dir / "cl_q.pfm").string();
-    std::vector<std::string> q = {obj, quant, "--device", "cl", "--nodes", "quantized", "--spp", "4", "--seed", "3"};
-    q.insert(q.end(), common.begin(), common.end());
-    EXPECT_EQ(run_cli(q), 0);
+    for (const char* nodes : {"full", "quantized"}) {
+        std::vector<std::string> q = {obj, nodes == std::string("full") ? gpu : quant, "--device", "cl", "--nodes",
+                                      nodes, "--spp", "4", "--seed", "3"};
+        q.insert(q.end(), common.begin(), common.end());
+        EXPECT_EQ(run_cli(q), 0) << nodes;
+    }
     const Diff qd = compare(read_pfm(gpu), read_pfm(quant));
     EXPECT_EQ(qd.worst, 0.0f) << "--nodes quantized changed the image";
+    EXPECT_GE(distinct_colours(read_pfm(quant)), 2u);
     EXPECT_THROW(run_cli({obj, gpu, "--device", "cl", "--spp", "0", "--quiet"}), RaykitCliRenderUsageError);
     EXPECT_THROW(run_cli({obj, gpu, "--device", "gpu", "--quiet"}), RaykitCliRenderUsageError);
     EXPECT_THROW(run_cli({obj, gpu, "--nodes", "quantized", "--quiet"}), RaykitCliRenderUsageError) << "without --device cl";
