@@ -6,7 +6,8 @@
 // canonical (the smallest fitting exponent from frexp(extent) - 8 up, the outermost bytes
 // whose planes still hold each child), and every operation is a float add, subtract or
 // multiply by a power of two, a comparison or frexp: exact or rounded once, so the device
-// writes the host's bytes (test_cl compares them after refits). Leaves of more than 255 blocks
+// writes the host's bytes (test_cl compares them after refits; a device that flushes subnormal
+// floats, CL_FP_DENORM unset, could differ on planes within 2^-126 of an origin at zero). Leaves of more than 255 blocks
 // are refused on the host before any of this runs (DeviceScene keeps full nodes then).
 //
 // Kernel: rk_quantize_nodes(nodes, qnodes, objects, which, dyn, n): qnodes[g] from nodes[g]
