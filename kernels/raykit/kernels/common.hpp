@@ -171,10 +171,13 @@ RK_INLINE uint rk_qslab(const rk_slab_ray* s, __global const rk_qnode* n, float 
            (uint)n->used;
 }
 
+/* raykit::cl::quantized_plane: origin + q * step, one rounding (the product is exact). */
+RK_INLINE float rk_qdecode(const float origin, const int q, const float step) { return (float)q * step + origin; }
+
 /* Plane `row * RK_WIDTH + child` (an offset as rk_slab_ray's wnear / wfar give it) of a
    quantized node, on axis `a`. */
 RK_INLINE float rk_qplane(__global const rk_qnode* n, const int offset, const int a) {
-    return (float)(((__global const uchar*)n->q)[offset]) * rk_qstep(n->exponent[a]) + n->origin[a];
+    return rk_qdecode(n->origin[a], ((__global const uchar*)n->q)[offset], rk_qstep(n->exponent[a]));
 }
 
 /* raykit::Watertight */

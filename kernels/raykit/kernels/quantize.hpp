@@ -24,9 +24,6 @@ RK_INLINE float rk_qinput(const float x, const int high) {
     return x < -FLT_MAX ? -FLT_MAX : x > FLT_MAX ? FLT_MAX : x;
 }
 
-/* quantized_plane */
-RK_INLINE float rk_qdecode(const float origin, const int q, const float step) { return (float)q * step + origin; }
-
 /* quantize_node, for a node with no leaf over 255 blocks */
 RK_INLINE void rk_quantize_node(__global const rk_wnode* n, __global rk_qnode* out) {
     rk_qnode r;
