@@ -313,13 +313,16 @@ TEST(ClProgram, LogLinesOfTheWholeTextAreNamedByPart) {
 // looser than two steps and two ulps, and the step is at most 4/255 of the extent (or the
 // smallest, 2^-126). Leaves of more than 255 blocks are refused; NaN and infinite planes read
 // as unbounded; an empty child leaves its siblings' steps alone.
-TEST(ClQuantize, DecodedBoxesHoldTheChildrenAndAreTight) {
-    std::mt19937_64 rng(2027);
+namespace {
+/// `count` seeded random wide nodes: offsets from 0 to +-1e30, extents from 0 to 1e30, flat boxes,
+/// 1 to 8 slots in use at scattered positions, leaves and inner children.
+std::vector<rcl::DeviceNode> random_wide_nodes(int count, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
     std::uniform_real_distribution<float> U(0.0f, 1.0f);
     const float offsets[] = {0.0f, -3.5f, 1e3f, 1e6f, -1e7f, 3e9f, -1e30f, 1e30f};
     const float extents[] = {0.0f, 1e-30f, 1e-3f, 1.0f, 250.0f, 1e5f, 1e30f};
-    std::size_t nodes = 0, outside = 0, loose = 0, coarse = 0;
-    for (int trial = 0; trial < 4000; ++trial) {
+    std::vector<rcl::DeviceNode> out;
+    for (int trial = 0; trial < count; ++trial) {
         const float off = offsets[trial % 8], ext = extents[(trial / 8) % 7];
         rcl::DeviceNode n;
         for (int c = 0; c < rcl::kDeviceWidth; ++c) n.clear(c);
@@ -337,6 +340,15 @@ TEST(ClQuantize, DecodedBoxesHoldTheChildrenAndAreTight) {
             n.index[slot] = c % 2 ? 7u + unsigned(c) : 100u;
             n.count[slot] = c % 2 ? 0u : unsigned(1 + c);
         }
+        out.push_back(n);
+    }
+    return out;
+}
+}  // namespace
+
+TEST(ClQuantize, DecodedBoxesHoldTheChildrenAndAreTight) {
+    std::size_t nodes = 0, outside = 0, loose = 0, coarse = 0;
+    for (const rcl::DeviceNode& n : random_wide_nodes(4000, 2027)) {
         const std::optional<rcl::QuantizedNode> q = rcl::quantize_node(n);
         ASSERT_TRUE(q.has_value());
         ++nodes;
@@ -403,6 +415,46 @@ TEST(ClQuantize, DecodedBoxesHoldTheChildrenAndAreTight) {
     const std::optional<rcl::QuantizedNode> empty = rcl::quantize_node(n);
     ASSERT_TRUE(empty.has_value());
     EXPECT_EQ(empty->used, 0u);
+}
+
+// The device's quantizer (rk_quantize_nodes, kernels/raykit/kernels/quantize.hpp) against the host's
+// quantize_node, byte for byte: the 4,000 seeded random nodes above, and hostile ones (NaN, +-inf
+// and +-FLT_MAX planes, empty children beside finite ones, every slot empty).
+TEST(ClQuantize, DeviceQuantizerWritesTheHostsBytes) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    std::vector<rcl::DeviceNode> nodes = random_wide_nodes(4000, 2028);
+    const float fmax = std::numeric_limits<float>::max(), nan = std::numeric_limits<float>::quiet_NaN();
+    const float hostile[] = {nan, kInf, -kInf, fmax, -fmax, 0.0f, -0.0f, 1e-30f};
+    for (int k = 0; k < 64; ++k) {
+        rcl::DeviceNode n = nodes[std::size_t(k)];
+        for (int c = 0; c < rcl::kDeviceWidth; ++c)
+            if (!n.unused(c) && (c + k) % 3 == 0) n.planes[(c + k) % 6][c] = hostile[(c + k) % 8];
+        if (k % 4 == 0) n.set_box(k % rcl::kDeviceWidth, AABB{});  // an empty box (it may be an unused slot)
+        nodes.push_back(n);
+    }
+    rcl::DeviceNode empty;
+    for (int c = 0; c < rcl::kDeviceWidth; ++c) empty.clear(c);
+    nodes.push_back(empty);
+    std::vector<rcl::SourcePart> parts = rcl::base_parts();
+    parts.push_back({"raykit/kernels/quantize.hpp", raykit::kernels::kQuantize});
+    const rcl::Program p = rcl::build_program(dev, rcl::assemble(parts), rcl::raykit_build_options(dev));
+    ::cl::Kernel k = p.kernel("rk_quantize_nodes");
+    const auto n = static_cast<std::uint32_t>(nodes.size());
+    rcl::Buffer<rcl::DeviceNode> in(dev, nodes);
+    rcl::Buffer<rcl::QuantizedNode> out(dev, nodes.size());
+    rcl::Buffer<rcl::ObjectRecord> objects(dev, 1);
+    rcl::Buffer<std::uint32_t> which(dev, 1);
+    rcl::set_args(k, in, out, objects, which, 0u, n);
+    rcl::launch(dev.queue(), k, n, 64);
+    const std::vector<rcl::QuantizedNode> got = out.read(dev);
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+        const std::optional<rcl::QuantizedNode> want = rcl::quantize_node(nodes[i]);
+        ASSERT_TRUE(want.has_value()) << i;
+        differ += std::memcmp(&*want, &got[i], sizeof(rcl::QuantizedNode)) != 0;
+    }
+    std::printf("[ info ] device quantizer: %zu nodes, %zu differ from the host's bytes\n", nodes.size(), differ);
+    EXPECT_EQ(differ, 0u);
 }
 
 TEST(ClLayout, DeviceAgreesWithHost) {
