@@ -312,7 +312,7 @@ TEST(ClProgram, LogLinesOfTheWholeTextAreNamedByPart) {
 // to 1e30, with 1 to 8 slots in use; every decoded box holds its child's box, no plane is
 // looser than two steps and two ulps, and the step is at most 4/255 of the extent (or the
 // smallest, 2^-126). Leaves of more than 255 blocks are refused; NaN and infinite planes read
-// as unbounded; an empty child leaves its siblings' steps alone.
+// as unbounded up to kQuantizeLimit; an empty child leaves its siblings' steps alone.
 namespace {
 /// `count` seeded random wide nodes: offsets from 0 to +-1e30, extents from 0 to 1e30, flat boxes,
 /// 1 to 8 slots in use at scattered positions, leaves and inner children.
@@ -397,13 +397,13 @@ TEST(ClQuantize, DecodedBoxesHoldTheChildrenAndAreTight) {
         n.planes[1][0] = bad;
         const std::optional<rcl::QuantizedNode> q = rcl::quantize_node(n);
         ASSERT_TRUE(q.has_value());
-        EXPECT_GE(rcl::quantized_box(*q, 0).max.x, std::numeric_limits<float>::max()) << bad;
+        EXPECT_GE(rcl::quantized_box(*q, 0).max.x, rcl::kQuantizeLimit) << bad;
         EXPECT_LE(rcl::quantized_box(*q, 1).min.x, -2.0f) << bad;
         EXPECT_GE(rcl::quantized_box(*q, 1).max.x, -1.0f) << bad;
     }
     n.planes[0][0] = std::nanf("");  // and a NaN low x plane: unbounded below
     ASSERT_TRUE(rcl::quantize_node(n).has_value());
-    EXPECT_LE(rcl::quantized_box(*rcl::quantize_node(n), 0).min.x, -std::numeric_limits<float>::max());
+    EXPECT_LE(rcl::quantized_box(*rcl::quantize_node(n), 0).min.x, -rcl::kQuantizeLimit);
     n.set_box(0, AABB{});  // an empty child (a refit over NaN vertices) beside a finite one
     const std::optional<rcl::QuantizedNode> e = rcl::quantize_node(n);
     ASSERT_TRUE(e.has_value());

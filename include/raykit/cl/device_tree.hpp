@@ -90,12 +90,20 @@ inline AABB quantized_box(const QuantizedNode& n, int c) noexcept {
     return b;
 }
 
+/// The largest plane magnitude quantize_node keeps, 2^126: the extent is then at most 2^127, so
+/// the step is at most 2^120 and 255·step stays below FLT_MAX. A product that overflowed would
+/// decode differently fused (fma) and unfused: with ±FLT_MAX here the ASan build's host code,
+/// which does not fuse, disagreed with the device on 3 of 4,065 hostile nodes. The limit is far
+/// beyond raykit's coordinates (math/limits.hpp: 2^32).
+inline constexpr float kQuantizeLimit = 0x1p126f;
+
 namespace detail {
 /// A child's plane as quantize_node reads it: NaN as unbounded on its side (the slab test
-/// ignores a NaN plane), then ±∞ as ±FLT_MAX, so every finite point of the child stays inside
-/// (an empty child, +∞ / −∞ after a refit of NaN vertices, decodes to an inverted box).
+/// ignores a NaN plane), then clamped to ±kQuantizeLimit (±∞ too), so every point of the child
+/// within the limit stays inside (an empty child, +∞ / −∞ after a refit of NaN vertices,
+/// decodes to an inverted box).
 inline float quantize_input(float x, bool high) noexcept {
-    constexpr float m = std::numeric_limits<float>::max();
+    constexpr float m = kQuantizeLimit;
     if (std::isnan(x)) return high ? m : -m;
     return std::clamp(x, -m, m);
 }
@@ -127,18 +135,16 @@ inline std::optional<QuantizedNode> quantize_node(const DeviceNode& n) {
                 lo = std::min(lo, clo[c]);
                 hi = std::max(hi, chi[c]);
             }
-        const float extent = hi - lo;  // +inf past FLT_MAX; negative when every child is empty
+        const float extent = hi - lo;  // at most 2^127; negative when every child is empty
         int e = -126;
-        if (extent == std::numeric_limits<float>::infinity()) {
-            e = 121;  // 255·2^121 is below FLT_MAX, 255·2^122 above
-        } else if (extent > 0.0f) {
+        if (extent > 0.0f) {
             int x = 0;
             std::frexp(extent, &x);  // extent < 2^x, so 255·2^(x−7) > extent
-            e = std::max(-126, std::min(127, x - 8));
+            e = std::max(-126, std::min(120, x - 8));
         }
         for (;; ++e) {
             const float step = quantized_step(e);
-            const float inv = e < 127 ? quantized_step(-e) : 0.0f;  // a first guess only
+            const float inv = quantized_step(-e);  // a first guess only
             bool fits = true;
             for (int c = 0; c < kDeviceWidth && fits; ++c) {
                 if (!((out.used >> c) & 1u)) continue;
@@ -155,7 +161,7 @@ inline std::optional<QuantizedNode> quantize_node(const DeviceNode& n) {
                 out.q[2 * a][c] = static_cast<std::uint8_t>(ql);
                 out.q[2 * a + 1][c] = static_cast<std::uint8_t>(qh);
             }
-            if (fits || e == 127) break;
+            if (fits || e == 120) break;  // 255·2^120 spans 2^127: it always fits there
         }
         out.origin[a] = lo;
         out.exponent[a] = static_cast<std::int8_t>(e);

@@ -18,10 +18,11 @@
 namespace raykit::kernels {
 
 inline constexpr const char* kQuantize = R"CLC(
-/* detail::quantize_input */
+/* detail::quantize_input (the limit kQuantizeLimit, 2^126) */
 RK_INLINE float rk_qinput(const float x, const int high) {
-    if (isnan(x)) return high ? FLT_MAX : -FLT_MAX;
-    return x < -FLT_MAX ? -FLT_MAX : x > FLT_MAX ? FLT_MAX : x;
+    const float m = 0x1p126f;
+    if (isnan(x)) return high ? m : -m;
+    return x < -m ? -m : x > m ? m : x;
 }
 
 /* quantize_node, for a node with no leaf over 255 blocks */
@@ -53,16 +54,14 @@ RK_INLINE void rk_quantize_node(__global const rk_wnode* n, __global rk_qnode* o
             }
             const float extent = hi - lo;
             int e = -126;
-            if (extent == INFINITY) {
-                e = 121;
-            } else if (extent > 0.0f) {
+            if (extent > 0.0f) {
                 int x = 0;
                 frexp(extent, &x);
-                e = max(-126, min(127, x - 8));
+                e = max(-126, min(120, x - 8));
             }
             for (;; ++e) {
                 const float step = rk_qstep((char)e);
-                const float inv = e < 127 ? rk_qstep((char)(-e)) : 0.0f;
+                const float inv = rk_qstep((char)(-e));
                 bool fits = true;
                 for (int c = 0; c < RK_WIDTH && fits; ++c) {
                     if (!((r.used >> c) & 1u)) continue;
@@ -81,7 +80,7 @@ RK_INLINE void rk_quantize_node(__global const rk_wnode* n, __global rk_qnode* o
                     r.q[2 * a][c] = (uchar)ql;
                     r.q[2 * a + 1][c] = (uchar)qh;
                 }
-                if (fits || e == 127) break;
+                if (fits || e == 120) break;
             }
             r.origin[a] = lo;
             r.exponent[a] = (char)e;
