@@ -9,9 +9,9 @@
 //                                                      blocks, cl/device_tree.hpp), rays resident on
 //                                                      the device, one launch per iteration, packets
 //                                                      of 16 rays (kernels/raykit/kernels/
-//                                                      trace_packet.hpp; one ray per work-item where
-//                                                      the device is not a CPU)
-//   cl_trace/<scene>/<rays>/<closest|any>/device_single the same, one ray per work-item
+//                                                      trace_packet.hpp) on every device, GPUs too
+//   cl_trace/<scene>/<rays>/<closest|any>/device_single the same, one ray per work-item (the
+//                                                      default walk where the device is not a CPU)
 //   cl_trace/<scene>/<rays>/<closest|any>/device_q, device_q_single   the same with the nodes
 //                                                      quantized (NodeForm::quantized, 104 bytes)
 //   cl_trace/<scene>/<rays>/<closest|any>/cpu_blocks8/threads:2  the CPU's fastest path on the
