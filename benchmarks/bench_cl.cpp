@@ -14,6 +14,9 @@
 //                                                      default walk where the device is not a CPU)
 //   cl_trace/<scene>/<rays>/<closest|any>/device_q, device_q_single   the same with the nodes
 //                                                      quantized (NodeForm::quantized, 104 bytes)
+//   cl_trace/<torus4M|torus16M>/<rays>/<closest|any>/device_single, device_q_single   the same on
+//                                                      GPU-sized meshes, whose full nodes outgrow a
+//                                                      GPU's L2 (skipped on CPU devices)
 //   cl_trace/<scene>/<rays>/<closest|any>/cpu_blocks8/threads:2  the CPU's fastest path on the
 //                                                      same tree (BlockBvh8::make of the same Bvh)
 //   cl_trace/<scene>/<rays>/<closest|any>/cpu_batch8/threads:2  the same tree through the batch
@@ -117,10 +120,16 @@ TraceSetup& trace_setup(rcl::Device& dev, const rkbench::Scene& s, const std::st
     return *slot;
 }
 
+bool gpu_sized(const std::string& scene) { return scene == "torus4M" || scene == "torus16M"; }
+
 void BM_TraceDevice(benchmark::State& state, const std::string& scene, const std::string& set, bool any,
                     bool packets, rcl::NodeForm form) {
     rcl::Device* dev = device_or_skip(state);
     if (!dev) return;
+    if (gpu_sized(scene) && dev->info().is_cpu()) {
+        state.SkipWithError("a GPU-sized mesh: run on GPUs only");
+        return;
+    }
     const rkbench::Scene* s = rkbench::scene_or_skip(state, scene);
     if (!s) return;
     TraceSetup& t = trace_setup(*dev, *s, set, form);
@@ -448,6 +457,17 @@ void BM_TraceCpuBlocks(benchmark::State& state, const std::string& scene, const 
 }
 
 const bool registered = [] {
+    for (const std::string scene : {"torus4M", "torus16M"})
+        for (const std::string set : {"primary", "random"})
+            for (const bool any : {false, true})
+                for (const rcl::NodeForm form : {rcl::NodeForm::full, rcl::NodeForm::quantized})
+                    benchmark::RegisterBenchmark(("cl_trace/" + scene + "/" + set + "/" + (any ? "any" : "closest") +
+                                                  (form == rcl::NodeForm::full ? "/device_single" : "/device_q_single"))
+                                                     .c_str(),
+                                                 BM_TraceDevice, scene, set, any, false, form)
+                        ->UseRealTime()
+                        ->MinTime(0.5)
+                        ->Unit(benchmark::kMillisecond);
     for (const std::string scene : {"torus100k", "torus1M", "bunny"})
         for (const std::string set : {"primary", "random"})
             for (const bool any : {false, true}) {

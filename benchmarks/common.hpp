@@ -5,6 +5,8 @@
 //                absent data makes scene() return nullptr and the case skips itself
 //   "torus100k"  raykit::make_bumpy_torus(100000)
 //   "torus1M"    raykit::make_bumpy_torus(1000000)
+//   "torus4M", "torus16M"  raykit::make_bumpy_torus(4000000 / 16000000): GPU-sized (bench_cl runs
+//                them on GPUs only: trees of 40-150 MB in full nodes, beyond a GPU's L2)
 //
 // Ray sets (kRayCount = 512x512 = 262 144 rays each, deterministic, shared by
 // raykit and Embree):
@@ -112,6 +114,10 @@ inline const Scene* scene(const std::string& name) {
         s->mesh = raykit::make_bumpy_torus(100000);
     } else if (name == "torus1M") {
         s->mesh = raykit::make_bumpy_torus(1000000);
+    } else if (name == "torus4M") {
+        s->mesh = raykit::make_bumpy_torus(4000000);
+    } else if (name == "torus16M") {
+        s->mesh = raykit::make_bumpy_torus(16000000);
     } else {
         throw std::invalid_argument("rkbench::scene: unknown scene " + name);
     }
