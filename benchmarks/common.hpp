@@ -6,7 +6,7 @@
 //   "torus100k"  raykit::make_bumpy_torus(100000)
 //   "torus1M"    raykit::make_bumpy_torus(1000000)
 //   "torus4M", "torus16M"  raykit::make_bumpy_torus(4000000 / 16000000): GPU-sized (bench_cl runs
-//                them on GPUs only: trees of 40-150 MB in full nodes, beyond a GPU's L2)
+//                them on GPUs only: 180 / 663 MB of 8-wide device nodes, beyond a GPU's L2)
 //
 // Ray sets (kRayCount = 512x512 = 262 144 rays each, deterministic, shared by
 // raykit and Embree):
