@@ -90,13 +90,6 @@ inline AABB quantized_box(const QuantizedNode& n, int c) noexcept {
     return b;
 }
 
-/// The largest plane magnitude quantize_node keeps, 2^126: the extent is then at most 2^127, so
-/// the step is at most 2^120 and 255·step stays below FLT_MAX. A product that overflowed would
-/// decode differently fused (fma) and unfused: with ±FLT_MAX here the ASan build's host code,
-/// which does not fuse, disagreed with the device on 3 of 4,065 hostile nodes. The limit is far
-/// beyond raykit's coordinates (math/limits.hpp: 2^32).
-inline constexpr float kQuantizeLimit = 0x1p126f;
-
 namespace detail {
 /// A child's plane as quantize_node reads it: NaN as unbounded on its side (the slab test
 /// ignores a NaN plane), then clamped to ±kQuantizeLimit (±∞ too), so every point of the child
@@ -140,7 +133,7 @@ inline std::optional<QuantizedNode> quantize_node(const DeviceNode& n) {
         if (extent > 0.0f) {
             int x = 0;
             std::frexp(extent, &x);  // extent < 2^x, so 255·2^(x−7) > extent
-            e = std::max(-126, std::min(120, x - 8));
+            e = std::max(-126, std::min(kQuantizeMaxExponent, x - 8));
         }
         for (;; ++e) {
             const float step = quantized_step(e);
@@ -161,7 +154,7 @@ inline std::optional<QuantizedNode> quantize_node(const DeviceNode& n) {
                 out.q[2 * a][c] = static_cast<std::uint8_t>(ql);
                 out.q[2 * a + 1][c] = static_cast<std::uint8_t>(qh);
             }
-            if (fits || e == 120) break;  // 255·2^120 spans 2^127: it always fits there
+            if (fits || e == kQuantizeMaxExponent) break;  // 255 steps there span 2^127: it always fits
         }
         out.origin[a] = lo;
         out.exponent[a] = static_cast<std::int8_t>(e);

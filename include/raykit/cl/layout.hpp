@@ -54,6 +54,17 @@ inline constexpr int kDeviceWidth = 8;
 /// An object tree's node as the device sees it (rk_wnode; see cl/device_tree.hpp).
 using DeviceNode = WideNodeT<kDeviceWidth>;
 
+/// The largest plane magnitude quantize_node keeps, 2^126 (RK_QUANTIZE_LIMIT): the extent is then
+/// at most 2^127, so the step is at most 2^120 and 255·step stays below FLT_MAX. A product that
+/// overflowed would decode differently fused (fma) and unfused: with ±FLT_MAX here the ASan
+/// build's host code, which does not fuse, disagreed with the device on 3 of 4,065 hostile
+/// nodes. The limit is far beyond raykit's coordinates (math/limits.hpp: 2^32).
+inline constexpr float kQuantizeLimit = 0x1p126f;
+/// The largest step exponent of a quantized node (RK_QUANTIZE_MAX_EXP): 255·2^120 spans 2^127.
+inline constexpr int kQuantizeMaxExponent = 120;
+static_assert(255.0 * 0x1p120 >= 2.0 * double(kQuantizeLimit) && 255.0 * 0x1p120 < 0x1p128,
+              "the largest step spans every extent within the limit and 255 of them stay finite");
+
 /// A DeviceNode with its child boxes quantized to bytes (rk_qnode; cl/device_tree.hpp
 /// quantize_node): plane (row r = 2·axis + hi, child c) is origin[axis] + q[r][c]·2^exponent[axis]
 /// in float, rounded outward so it holds the child's box; `used` has a bit per slot in use.
@@ -223,6 +234,8 @@ inline std::string config_source() {
     return "#define RK_MAX_DEPTH " + std::to_string(RAYKIT_BVH_MAX_DEPTH) + "\n" +
            "#define RK_WIDTH " + std::to_string(kDeviceWidth) + "\n" +
            "#define RK_SLAB_EXIT_SCALE " + hex_float(kSlabExitScale) + "\n" +
+           "#define RK_QUANTIZE_LIMIT " + hex_float(kQuantizeLimit) + "\n" +
+           "#define RK_QUANTIZE_MAX_EXP " + std::to_string(kQuantizeMaxExponent) + "\n" +
            "#define RK_FUSE_MSUB " + (f.fuse_msub ? "1" : "0") + "\n" +
            "#define RK_FUSE_T " + (f.fuse_tnum ? "1" : "0") + "\n";
 }

@@ -13,14 +13,17 @@
 // Kernel: rk_quantize_nodes(nodes, qnodes, objects, which, dyn, n): qnodes[g] from nodes[g]
 // for g < n; with dyn > 0 only nodes of the current trees of objects which[0 .. dyn) (in
 // node order: DeviceScene puts its dynamic objects first), the rest of their capacity left.
+//
+// Expects from the program preamble (raykit::cl::config_source()): RK_QUANTIZE_LIMIT
+// (kQuantizeLimit, exact hex float) and RK_QUANTIZE_MAX_EXP (kQuantizeMaxExponent).
 #pragma once
 
 namespace raykit::kernels {
 
 inline constexpr const char* kQuantize = R"CLC(
-/* detail::quantize_input (the limit kQuantizeLimit, 2^126) */
+/* detail::quantize_input */
 RK_INLINE float rk_qinput(const float x, const int high) {
-    const float m = 0x1p126f;
+    const float m = RK_QUANTIZE_LIMIT;
     if (isnan(x)) return high ? m : -m;
     return x < -m ? -m : x > m ? m : x;
 }
@@ -57,7 +60,7 @@ RK_INLINE void rk_quantize_node(__global const rk_wnode* n, __global rk_qnode* o
             if (extent > 0.0f) {
                 int x = 0;
                 frexp(extent, &x);
-                e = max(-126, min(120, x - 8));
+                e = max(-126, min(RK_QUANTIZE_MAX_EXP, x - 8));
             }
             for (;; ++e) {
                 const float step = rk_qstep((char)e);
@@ -80,7 +83,7 @@ RK_INLINE void rk_quantize_node(__global const rk_wnode* n, __global rk_qnode* o
                     r.q[2 * a][c] = (uchar)ql;
                     r.q[2 * a + 1][c] = (uchar)qh;
                 }
-                if (fits || e == 120) break;
+                if (fits || e == RK_QUANTIZE_MAX_EXP) break;
             }
             r.origin[a] = lo;
             r.exponent[a] = (char)e;
