@@ -457,23 +457,13 @@ void BM_TraceCpuBlocks(benchmark::State& state, const std::string& scene, const 
 }
 
 const bool registered = [] {
-    for (const std::string scene : {"torus4M", "torus16M"})
-        for (const std::string set : {"primary", "random"})
-            for (const bool any : {false, true})
-                for (const rcl::NodeForm form : {rcl::NodeForm::full, rcl::NodeForm::quantized})
-                    benchmark::RegisterBenchmark(("cl_trace/" + scene + "/" + set + "/" + (any ? "any" : "closest") +
-                                                  (form == rcl::NodeForm::full ? "/device_single" : "/device_q_single"))
-                                                     .c_str(),
-                                                 BM_TraceDevice, scene, set, any, false, form)
-                        ->UseRealTime()
-                        ->MinTime(0.5)
-                        ->Unit(benchmark::kMillisecond);
-    for (const std::string scene : {"torus100k", "torus1M", "bunny"})
+    for (const std::string scene : {"torus100k", "torus1M", "bunny", "torus4M", "torus16M"})
         for (const std::string set : {"primary", "random"})
             for (const bool any : {false, true}) {
                 const std::string base = "cl_trace/" + scene + "/" + set + "/" + (any ? "any" : "closest");
                 for (const rcl::NodeForm form : {rcl::NodeForm::full, rcl::NodeForm::quantized})
-                    for (const bool packets : {true, false})
+                    for (const bool packets : {true, false}) {
+                        if (packets && gpu_sized(scene)) continue;  // GPUs walk single rays
                         benchmark::RegisterBenchmark(
                             (base + (form == rcl::NodeForm::full ? "/device" : "/device_q") + (packets ? "" : "_single"))
                                 .c_str(),
@@ -481,6 +471,8 @@ const bool registered = [] {
                             ->UseRealTime()
                             ->MinTime(0.5)
                             ->Unit(benchmark::kMillisecond);
+                    }
+                if (gpu_sized(scene)) continue;  // no CPU rows: the device rows run on GPUs only
                 for (const bool batch : {false, true})
                     benchmark::RegisterBenchmark((base + (batch ? "/cpu_batch8" : "/cpu_blocks8")).c_str(),
                                                  BM_TraceCpuBlocks, scene, set, any, batch)
