@@ -349,6 +349,45 @@ TEST(Builders, PairwiseEqualsTheQuadraticReference) {
     }
 }
 
+TEST(Builders, PairwiseOnSeveralThreadsEqualsTheQuadraticReference) {
+    // Lists long enough (≥ 2 · 4096) that a level is cut into parts whose guesses are checked:
+    // a random soup (no order: many wrong guesses), a torus (list order follows the surface) and
+    // a grid of equal triangles (exact ties at every distance, so the tie rule decides).
+    using PM = PairwiseBuilder::Config::Metric;
+    std::vector<std::pair<std::string, Mesh>> meshes;
+    meshes.emplace_back("soup", make_random_soup(9000, 41, 0.03f));
+    meshes.emplace_back("torus", make_bumpy_torus(9000));
+    {
+        std::vector<std::array<vec3, 3>> grid;
+        for (int i = 0; i < 24; ++i)
+            for (int j = 0; j < 24; ++j)
+                for (int k = 0; k < 16; ++k) {
+                    const vec3 p{float(i), float(j), float(k)};
+                    grid.push_back({p, p + vec3(0.5f, 0, 0), p + vec3(0, 0.5f, 0)});
+                }
+        meshes.emplace_back("grid", mesh_of_triangles(grid));
+        // the same grid in a seeded random order: wrong guesses whose phantoms tie with them
+        std::mt19937 rng(5);
+        std::shuffle(grid.begin(), grid.end(), rng);
+        meshes.emplace_back("shuffled grid", mesh_of_triangles(grid));
+    }
+    for (const auto& [name, m] : meshes) {
+        const PrimitiveRefs r = primitive_refs(m);
+        for (PM metric : {PM::centre, PM::area}) {
+            PairwiseBuilder::Config cfg;
+            cfg.metric = metric;
+            cfg.leaf.max_leaf_size = 1;
+            const Bvh ref = PairwiseBuilder::build_reference(r.boxes, r.centers, cfg);
+            for (unsigned threads : {2u, 3u}) {
+                cfg.threads = threads;
+                const Bvh fast = PairwiseBuilder::build(r.boxes, r.centers, cfg);
+                EXPECT_TRUE(same_tree(fast, ref)) << name << ", metric " << (metric == PM::centre ? "centre" : "area")
+                                                  << ", " << threads << " threads";
+            }
+        }
+    }
+}
+
 TEST(Builders, EmptyAndTinyInputs) {
     for (const Setting& st : all_settings()) {
         const Bvh e = st.build({}, {}, 0, 8);

@@ -27,7 +27,7 @@
 // step (float differences, exact double products, a fixed summation order),
 // so the fast builder and build_reference() give the same tree bit for bit.
 //
-// Cost. The greedy pairing is inherently sequential; what makes it fast is
+// Cost. The greedy pairing is sequential by its rule; what makes it fast is
 // the search. Per level the elements are sorted by the 30-bit Morton code of
 // their centres (parallel radix sort) and a binary radix tree is laid over
 // the sorted array (a range splits where its highest differing code bit
@@ -45,7 +45,8 @@
 // grown to touch the subtree's box (the merged box must reach at least that
 // far on every axis).
 // Sorting and the per-element passes (keys, gathers, the next level's boxes)
-// run on all threads; the result does not depend on the thread count.
+// run on all threads, and so does the pairing itself, by guessing and checking
+// (pair_fast); the result does not depend on the thread count.
 //
 // The merge tree then goes through the shared back end (bvh/bottom_up.hpp):
 // SAH leaf merge into leaves of up to leaf.max_leaf_size primitives, the
@@ -59,6 +60,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <utility>
@@ -182,8 +184,8 @@ private:
         return carried;
     }
 
-    /// Search structure over one level (see the header comment).
-    struct Index {
+    /// Search structure over one level (see the header comment). Aligned: see pair_fast.
+    struct alignas(64) Index {
         struct TreeNode {
             AABB box;                 // bounds of the elements below (centres or boxes)
             std::uint32_t kid;        // inner: first child (the second is kid + 1); leaf: first position
@@ -200,6 +202,7 @@ private:
         std::vector<vec3> pc;                // centres, sorted (centre metric)
         std::vector<AABB> pb;                // boxes, sorted (area metric)
         std::vector<Mask> alive;             // per tree node: a leaf's live positions; inner: 0 once all are gone
+                                             // (the level's state: pair_fast plays removals on it and on copies)
         std::vector<TreeNode> tree;          // root 0; siblings side by side
 
         Index(const Level& lv, bool use_area, unsigned threads) : L(lv), area(use_area) {
@@ -282,9 +285,10 @@ private:
             }
         }
 
-        bool is_alive(std::uint32_t s) const noexcept {
-            const std::uint32_t leaf = leaf_of[s];
-            return (static_cast<unsigned>(alive[leaf]) >> (s - tree[leaf].kid)) & 1u;
+        /// Whether list element e is alive in state `a`.
+        bool is_alive(std::uint32_t e, const std::vector<Mask>& a) const noexcept {
+            const std::uint32_t s = pos[e], leaf = leaf_of[s];
+            return (static_cast<unsigned>(a[leaf]) >> (s - tree[leaf].kid)) & 1u;
         }
 
         /// An inner node is marked empty when its last element goes, so a removal climbs the tree
@@ -292,25 +296,40 @@ private:
         /// climbed most of the way at most removals (elements go in list order); the tie bound now
         /// uses the smallest index live or not, which prunes less only on exact ties. Bunny, one
         /// thread: 40 -> 34 ms (centre), 67 -> 59 ms (area); the same trees.
-        void remove(std::uint32_t s) noexcept {
+        /// Puts list element e back into state `a` (the inverse of remove).
+        void insert(std::uint32_t e, std::vector<Mask>& a) const noexcept {
+            const std::uint32_t s = pos[e];
             std::uint32_t k = leaf_of[s];
-            alive[k] &= static_cast<Mask>(~(Mask(1) << (s - tree[k].kid)));
-            for (std::uint32_t p = tree[k].parent; alive[k] == 0 && p != kNone; k = p, p = tree[p].parent) {
-                if (alive[tree[p].kid + (tree[p].kid == k ? 1u : 0u)] != 0) break;
-                alive[p] = 0;
+            a[k] |= static_cast<Mask>(Mask(1) << (s - tree[k].kid));
+            for (k = tree[k].parent; k != kNone && a[k] == 0; k = tree[k].parent) a[k] = 1;
+        }
+
+        void remove(std::uint32_t e, std::vector<Mask>& a) const noexcept {
+            const std::uint32_t s = pos[e];
+            std::uint32_t k = leaf_of[s];
+            a[k] &= static_cast<Mask>(~(Mask(1) << (s - tree[k].kid)));
+            for (std::uint32_t p = tree[k].parent; a[k] == 0 && p != kNone; k = p, p = tree[p].parent) {
+                if (a[tree[p].kid + (tree[p].kid == k ? 1u : 0u)] != 0) break;
+                a[p] = 0;
             }
         }
 
         struct Best {
             double d = kInf;
-            std::uint32_t e = kNone, s = kNone;
+            std::uint32_t e = kNone;
         };
 
-        /// Nearest live element to list element q (already removed).
-        Best nearest(std::uint32_t q, std::vector<std::pair<double, std::uint64_t>>& stack) const {
+        /// Nearest element to list element q that is alive in state `a` and comes after q in the
+        /// list (the rule's candidates: every earlier one is gone by q's turn), or `best` when none
+        /// is nearer.
+        Best nearest(std::uint32_t q, const std::vector<Mask>& alive,
+                     std::vector<std::pair<double, std::uint64_t>>& stack) const {
+            return nearest(q, alive, stack, Best{});
+        }
+        Best nearest(std::uint32_t q, const std::vector<Mask>& alive, std::vector<std::pair<double, std::uint64_t>>& stack,
+                     Best best) const {
             const vec3 qc = L.centre[q];
             const AABB qb = L.box[q];
-            Best best;
             auto bound = [&](std::uint32_t k) {
                 return area ? area_bound(qb, tree[k].box) : centre_bound(qc, tree[k].box);
             };
@@ -323,7 +342,8 @@ private:
                     const std::uint32_t s = base + static_cast<std::uint32_t>(std::countr_zero(mask));
                     const double d = area ? merged_area(qb, pb[s]) : centre_dist(qc, pc[s]);
                     const std::uint32_t e = elem[s];
-                    if (d < best.d || (d == best.d && e < best.e)) best = {d, e, s};
+                    if (e <= q) continue;
+                    if (d < best.d || (d == best.d && e < best.e)) best = {d, e};
                 }
             };
             // best first below `root`; the stack holds (bound, node), full
@@ -366,23 +386,97 @@ private:
         }
     };
 
-    static std::uint32_t pair_fast(const Level& L, bool area, unsigned threads, std::vector<Pair>& pairs) {
-        Index ix(L, area, threads);
-        const auto m = static_cast<std::uint32_t>(L.size());
+    /// One part of a level's list: the state it plays on, and what each of its queries found.
+    /// One part of a level's list (see pair_fast): the state it plays on and what its queries
+    /// found. Cache-line aligned: two parts' stacks on one line made 2 threads slower than 1.
+    struct alignas(64) Part {
+        std::vector<Mask> alive;
+        std::vector<std::uint8_t> searched;
+        std::vector<Index::Best> best;
         std::vector<std::pair<double, std::uint64_t>> stack;
-        stack.reserve(256);
+        std::vector<Pair> pairs;  // part 0's: the caller's list sits beside data the other threads read
+    };
+    /// Elements per part below which a level is not cut (not tuned: it keeps the cut to levels
+    /// whose parts take far longer than waking a thread).
+    static constexpr std::uint32_t kMinPart = 4096;
+
+    /// The rule on one level. With several threads the list is cut into one contiguous part per
+    /// thread. Part 0 plays the rule on the level's state. Each later part plays it at the same
+    /// time on a copy of the state at the level's start, as though the parts before it had
+    /// paired nothing (their elements come before its queries, so only their partners inside it
+    /// are missed). Then the later parts are committed in list order: a guess is kept when its
+    /// partner is still alive and no element that its part wrongly took as gone (a "phantom": the
+    /// partner of a guess not kept) is nearer, and is searched again otherwise. The set alive at
+    /// a query's turn lies within the guess's set plus the live phantoms, so a kept guess is the
+    /// rule's answer, ties included: the pairs, and so the tree, are the same for every thread
+    /// count. (Guessing in rounds of 2048 queries per thread instead let wrong guesses cascade
+    /// from every round's seams: 10 % searched again on the bunny, and no faster than 1 thread.)
+    static std::uint32_t pair_fast(const Level& L, bool area, unsigned threads, detail::WorkTeam& team,
+                                   std::vector<Part>& parts, std::vector<Pair>& pairs) {
+        // on the heap and on cache lines of its own (Index is aligned): the other threads read its
+        // fields all the time, and whatever the calling thread wrote beside it (its stack, then a
+        // neighbouring allocation) made those reads miss: 2 threads took 31 or 38 ms from run to run
+        const auto index = std::make_unique<Index>(L, area, threads);
+        Index& ix = *index;
+        const auto m = static_cast<std::uint32_t>(L.size());
+        const unsigned members = std::max(1u, std::min(team.size(), m / kMinPart));
+        auto bounds = [&](unsigned c) { return std::uint32_t(std::uint64_t(m) * c / members); };
+        parts.resize(members);
+        for (unsigned c = 1; c < members; ++c) {
+            parts[c].alive = ix.alive;
+            parts[c].searched.assign(bounds(c + 1) - bounds(c), 0);
+            parts[c].best.resize(bounds(c + 1) - bounds(c));
+        }
         std::uint32_t carried = kNone;
-        for (std::uint32_t i = 0; i < m; ++i) {
-            const std::uint32_t s = ix.pos[i];
-            if (!ix.is_alive(s)) continue;
-            ix.remove(s);
-            const Index::Best b = ix.nearest(i, stack);
-            if (b.e == kNone) {
-                carried = i;
-                break;  // nothing else is alive
+        team.chunks(m, members, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+            Part& p = parts[c];
+            std::vector<Mask>& alive = c == 0 ? ix.alive : p.alive;
+            for (std::uint32_t e = 0; e < lo; ++e) ix.remove(e, alive);  // gone by the part's first turn
+            for (auto q = static_cast<std::uint32_t>(lo); q < hi; ++q) {
+                if (!ix.is_alive(q, alive)) continue;
+                ix.remove(q, alive);
+                const Index::Best b = ix.nearest(q, alive, p.stack);
+                if (c > 0) {
+                    p.searched[q - lo] = 1;
+                    p.best[q - lo] = b;
+                } else if (b.e == kNone) {
+                    carried = q;  // nothing else is alive
+                    return;
+                } else {
+                    p.pairs.push_back({q, b.e});
+                }
+                if (b.e != kNone) ix.remove(b.e, alive);
             }
-            ix.remove(b.s);
-            pairs.push_back({i, b.e});
+        });
+        pairs.insert(pairs.end(), parts[0].pairs.begin(), parts[0].pairs.end());
+        parts[0].pairs.clear();
+        std::vector<Mask> phantoms;  // a state of the live phantoms only
+        for (unsigned c = 1; c < members && carried == kNone; ++c) {
+            Part& p = parts[c];
+            phantoms.assign(ix.alive.size(), 0);
+            auto gone = [&](std::uint32_t e) {
+                ix.remove(e, ix.alive);
+                ix.remove(e, phantoms);
+            };
+            for (std::uint32_t q = bounds(c); q < bounds(c + 1); ++q) {
+                const bool guessed = p.searched[q - bounds(c)] != 0;
+                const Index::Best guess = guessed ? p.best[q - bounds(c)] : Index::Best{};
+                if (!ix.is_alive(q, ix.alive)) {
+                    if (guess.e != kNone && ix.is_alive(guess.e, ix.alive)) ix.insert(guess.e, phantoms);
+                    continue;
+                }
+                gone(q);
+                bool keep = guessed && (guess.e == kNone || ix.is_alive(guess.e, ix.alive));
+                keep = keep && (phantoms[0] == 0 || ix.nearest(q, phantoms, p.stack, guess).e == guess.e);
+                const Index::Best b = keep ? guess : ix.nearest(q, ix.alive, p.stack);
+                if (!keep && guess.e != kNone && ix.is_alive(guess.e, ix.alive)) ix.insert(guess.e, phantoms);
+                if (b.e == kNone) {
+                    carried = q;
+                    break;
+                }
+                gone(b.e);
+                pairs.push_back({q, b.e});
+            }
         }
         return carried;
     }
@@ -409,11 +503,13 @@ private:
             cur.node[i] = static_cast<std::uint32_t>(i);
         }, detail::kMinParallelPass);
         std::vector<Pair> pairs;
+        detail::WorkTeam team(!reference && n >= 2 * kMinPart ? threads : 1u);
+        std::vector<Part> parts;
         while (cur.size() > 1) {
             pairs.clear();
             const std::uint32_t carried = (reference || cur.size() <= kBruteLevel)
                                               ? pair_brute(cur, area, pairs)
-                                              : pair_fast(cur, area, threads, pairs);
+                                              : pair_fast(cur, area, threads, team, parts, pairs);
             const std::size_t np = pairs.size(), m2 = np + (carried != kNone);
             const auto base = static_cast<std::uint32_t>(tree.size());
             tree.info.resize(base + np);
