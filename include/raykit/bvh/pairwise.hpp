@@ -388,7 +388,7 @@ private:
 
     /// One part of a level's list: the state it plays on, and what each of its queries found.
     /// One part of a level's list (see pair_fast): the state it plays on and what its queries
-    /// found. Cache-line aligned: two parts' stacks on one line made 2 threads slower than 1.
+    /// found. Cache-line aligned, so that no two threads write one line (the parts' stacks did).
     struct alignas(64) Part {
         std::vector<Mask> alive;
         std::vector<std::uint8_t> searched;
@@ -414,8 +414,8 @@ private:
     static std::uint32_t pair_fast(const Level& L, bool area, unsigned threads, detail::WorkTeam& team,
                                    std::vector<Part>& parts, std::vector<Pair>& pairs) {
         // on the heap and on cache lines of its own (Index is aligned): the other threads read its
-        // fields all the time, and whatever the calling thread wrote beside it (its stack, then a
-        // neighbouring allocation) made those reads miss: 2 threads took 31 or 38 ms from run to run
+        // fields all the time, so nothing the calling thread writes (its stack frames, a
+        // neighbouring allocation) may share a line with them
         const auto index = std::make_unique<Index>(L, area, threads);
         Index& ix = *index;
         const auto m = static_cast<std::uint32_t>(L.size());
