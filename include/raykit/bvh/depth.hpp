@@ -36,7 +36,8 @@ inline std::uint32_t median_partition(std::span<std::uint32_t> ids, std::uint32_
 }
 
 /// Rewrites a tree whose inner node `index` fields point to adjacent child
-/// pairs anywhere in `tmp` into depth-first pre-order with no gaps.
+/// pairs anywhere in `tmp` into depth-first pre-order with no gaps: the one
+/// node layout. The builders write it directly; the tests hold them to it.
 inline NodeArray compact_preorder(const std::vector<Node>& tmp, std::uint32_t root = 0) {
     NodeArray out;
     if (tmp.empty()) return out;
