@@ -26,7 +26,8 @@
 // (fork/join, down to a depth of log2(threads)+2), and the binning and bounds
 // passes of nodes over 64k primitives run in chunks on all threads. The tree is
 // the same for every thread count: splits depend only on the primitive set,
-// and the final layout is a depth-first pre-order pass.
+// and nodes are written in depth-first pre-order as they are made (a forked
+// subtree into a buffer of its own; the buffers are put together at the end).
 #pragma once
 
 #include <algorithm>
