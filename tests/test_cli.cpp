@@ -33,9 +33,13 @@ struct Result {
     std::string out, err;
 };
 
+/// This process's scratch folder, emptied at first use: process ids come round again, and
+/// files an earlier process of the same id left (one.png) made tests that expect a file to
+/// be absent fail now and then.
 fs::path tmpdir() {
     static const fs::path dir = [] {
         fs::path d = fs::temp_directory_path() / ("raykit_cli_test_" + std::to_string(::getpid()));
+        fs::remove_all(d);
         fs::create_directories(d);
         return d;
     }();
