@@ -23,9 +23,9 @@
 // accumulates both children's bounds.
 //
 // Parallel: a node of at least parallel_threshold primitives hands its right
-// subtree to a pool that a team of `threads` threads drains, largest subtree
-// first, and the binning and bounds passes of nodes over 64k primitives run in
-// chunks on all threads. The tree is the same for every thread count: splits
+// subtree to a queue (detail::TaskQueue, util/parallel.hpp) that a team of
+// `threads` threads drains, largest subtree first, and the binning and bounds
+// passes of nodes over 64k primitives run in chunks on all threads. The tree is the same for every thread count: splits
 // depend only on the primitive set, and nodes are written in depth-first
 // pre-order as they are made (a handed-off subtree into a buffer of its own;
 // the buffers are put together at the end, on all threads). Against forking
@@ -38,10 +38,7 @@
 #include <bit>
 #include <cstddef>
 #include <cstdint>
-#include <condition_variable>
-#include <exception>
 #include <memory>
-#include <mutex>
 #include <span>
 #include <stdexcept>
 #include <vector>
@@ -138,15 +135,14 @@ struct BinnedSahBuilder {
         }
         AABB box, cbox;
         impl.bounds(0, n, box, cbox);
-        Pool pool;
+        detail::TaskQueue<Task> pool;
         if (impl.threads > 1 && n >= cfg.parallel_threshold) impl.pool = &pool;
         Buf top(n, impl.forks(n));
         if (!impl.pool) {
             impl.node(top, 0, 0, n, 0, box, cbox);
         } else {
-            pool.tasks.push_back({&top, 0, n, 0, box, cbox});
-            detail::WorkTeam(impl.threads, false).each([&](unsigned) { impl.work(); });
-            if (pool.error) std::rethrow_exception(pool.error);
+            pool.push({&top, 0, n, 0, box, cbox}, n);
+            pool.drain(impl.threads, [&](const Task& t) { impl.node(*t.buf, 0, t.b, t.e, t.depth, t.box, t.cbox); });
         }
         if (!top.kids[0]) {
             bvh.nodes = std::move(top.nodes);
@@ -235,58 +231,23 @@ private:
         }
     };
 
-    /// A subtree waiting for a thread: refs[b, e) into task.buf's root.
+    /// A subtree waiting for a thread (detail::TaskQueue): refs[b, e) into task.buf's root.
     struct Task {
         Buf* buf;
         std::uint32_t b, e;
         int depth;
         AABB box, cbox;
     };
-    /// The subtrees of a build on several threads. A node of at least parallel_threshold
-    /// primitives at a Buf's root hands its right child here and goes on with its left; an idle
-    /// thread takes the largest waiting subtree. (Forking two new threads per node down to a
-    /// fixed depth left 4 subtrees of 11-24k primitives to the scheduler on the bunny, and the
-    /// last one ran alone.)
-    struct Pool {
-        std::mutex m;
-        std::condition_variable cv;
-        std::vector<Task> tasks;
-        unsigned running = 0;  ///< threads inside a task
-        std::exception_ptr error;
-    };
-
     struct Impl {
         std::vector<Ref> refs;
         Config cfg;
         unsigned threads;
-        Pool* pool;  ///< null on one thread
+        /// Subtrees for other threads (a node of at least parallel_threshold primitives at a
+        /// Buf's root hands its right child here and goes on with its left); null on one thread.
+        detail::TaskQueue<Task>* pool;
 
         /// Whether a Buf's root over `prims` primitives hands its children on (children()).
         bool forks(std::size_t prims) const noexcept { return pool && prims >= cfg.parallel_threshold; }
-
-        /// One thread's share: waiting subtrees, largest first, until none waits and none runs.
-        void work() {
-            std::unique_lock lock(pool->m);
-            for (;;) {
-                pool->cv.wait(lock, [&] { return !pool->tasks.empty() || pool->running == 0; });
-                if (pool->tasks.empty()) return;
-                const auto it = std::max_element(pool->tasks.begin(), pool->tasks.end(),
-                                                 [](const Task& x, const Task& y) { return x.e - x.b < y.e - y.b; });
-                const Task t = *it;
-                pool->tasks.erase(it);
-                ++pool->running;
-                lock.unlock();
-                try {
-                    node(*t.buf, 0, t.b, t.e, t.depth, t.box, t.cbox);
-                } catch (...) {
-                    lock.lock();
-                    if (!pool->error) pool->error = std::current_exception();
-                    lock.unlock();
-                }
-                lock.lock();
-                if (--pool->running == 0 && pool->tasks.empty()) pool->cv.notify_all();
-            }
-        }
 
         static constexpr std::size_t kParallelPass = 65536;
 
@@ -666,11 +627,7 @@ private:
             }
             buf.kids[0] = std::make_unique<Buf>(mid - b, forks(mid - b));
             buf.kids[1] = std::make_unique<Buf>(e - mid, forks(e - mid));
-            {
-                const std::lock_guard lock(pool->m);
-                pool->tasks.push_back({buf.kids[1].get(), mid, e, depth + 1, rbox, rcbox});
-            }
-            pool->cv.notify_one();
+            pool->push({buf.kids[1].get(), mid, e, depth + 1, rbox, rcbox}, e - mid);
             this->node(*buf.kids[0], 0, b, mid, depth + 1, lbox, lcbox);
         }
     };
