@@ -22,15 +22,20 @@
 // place, so every pass streams through memory; a partition pass also
 // accumulates both children's bounds.
 //
-// Parallel: a node of at least parallel_threshold primitives hands its right
-// subtree to a queue (detail::TaskQueue, util/parallel.hpp) that a team of
-// `threads` threads drains, largest subtree first, and the binning and bounds
-// passes of nodes over 64k primitives run in chunks on all threads. The tree is the same for every thread count: splits
+// Parallel: one team of `threads` threads per build (util/parallel.hpp). The
+// root splits first, its passes in chunks on the team; a node of at least
+// parallel_threshold primitives then hands its subtrees to a queue
+// (detail::TaskQueue) that the team drains, largest subtree first, and inside
+// it the binning and bounds passes of nodes over 64k primitives run in chunks
+// on teams of their own. The tree is the same for every thread count: splits
 // depend only on the primitive set, and nodes are written in depth-first
 // pre-order as they are made (a handed-off subtree into a buffer of its own;
-// the buffers are put together at the end, on all threads). Against forking
+// the buffers are put together at the end, on the team). Against forking
 // two threads per node down to depth log2(threads)+2, the pool is 4-10 %
-// faster on two threads (bunny 13.2-14.0 -> 11.9-12.3 ms, same trees).
+// faster on two threads (bunny 13.2-14.0 -> 11.9-12.3 ms, same trees). Against
+// a one-call team per pass (nine per bunny build, ~56 µs each to start), the
+// build's team is 3 % faster there (medians of 8 interleaved processes, 12.16
+// -> 11.75 ms; BlockBvh8::build 16.43 -> 15.38 ms).
 #pragma once
 
 #include <algorithm>
@@ -125,24 +130,30 @@ struct BinnedSahBuilder {
         Bvh bvh;
         const auto n = static_cast<std::uint32_t>(boxes.size());
         if (n == 0) return bvh;
-        Impl impl{{}, cfg, resolve_threads(cfg.threads), nullptr};
+        const unsigned threads = resolve_threads(cfg.threads);
+        // one team for the build's passes and its pool (a one-call team per pass cost ~56 µs to
+        // start each, nine of them per bunny build on two threads)
+        const bool pooled = threads > 1 && n >= cfg.parallel_threshold;
+        detail::WorkTeam team(pooled || (threads > 1 && n >= detail::kMinParallelPass) ? threads : 1u);
+        Impl impl{{}, cfg, threads, team.size() > 1 ? &team : nullptr, nullptr};
         {
-            const detail::SanitizedCenters c = detail::sanitize_centers(centers, impl.threads);
+            const detail::SanitizedCenters c = detail::sanitize_centers(centers, threads, impl.team);
             impl.refs.resize(n);
-            parallel_for(n, impl.threads, [&](std::size_t i) {
-                impl.refs[i] = {boxes[i], c[i], static_cast<std::uint32_t>(i)};
-            });
+            impl.each(n, [&](std::size_t i) { impl.refs[i] = {boxes[i], c[i], static_cast<std::uint32_t>(i)}; });
         }
         AABB box, cbox;
         impl.bounds(0, n, box, cbox);
         detail::TaskQueue<Task> pool;
-        if (impl.threads > 1 && n >= cfg.parallel_threshold) impl.pool = &pool;
+        if (pooled) impl.pool = &pool;
         Buf top(n, impl.forks(n));
-        if (!impl.pool) {
-            impl.node(top, 0, 0, n, 0, box, cbox);
-        } else {
-            pool.push({&top, 0, n, 0, box, cbox}, n);
-            pool.drain(impl.threads, [&](const Task& t) { impl.node(*t.buf, 0, t.b, t.e, t.depth, t.box, t.cbox); });
+        // the root splits here, its passes on the team; when it forks, both its subtrees wait
+        // in the pool, which the team then drains (their passes may not use the team meanwhile)
+        impl.node(top, 0, 0, n, 0, box, cbox);
+        if (impl.pool) {
+            detail::WorkTeam* const own = impl.team;
+            impl.team = nullptr;
+            pool.drain(team, [&](const Task& t) { impl.node(*t.buf, 0, t.b, t.e, t.depth, t.box, t.cbox); });
+            impl.team = own;
         }
         if (!top.kids[0]) {
             bvh.nodes = std::move(top.nodes);
@@ -150,12 +161,14 @@ struct BinnedSahBuilder {
             bvh.nodes.resize(top.size());
             std::vector<Placed> unforked;
             top.layout(bvh.nodes.data(), 0, 1, unforked);
-            parallel_chunks(unforked.size(), unforked.size(), impl.threads, [&](std::size_t, std::size_t lo, std::size_t hi) {
-                for (std::size_t k = lo; k < hi; ++k) unforked[k].buf->copy(bvh.nodes.data(), unforked[k].at, unforked[k].next);
-            });
+            detail::run_chunks(impl.team, threads, unforked.size(), unforked.size(),
+                               [&](std::size_t, std::size_t lo, std::size_t hi) {
+                                   for (std::size_t k = lo; k < hi; ++k)
+                                       unforked[k].buf->copy(bvh.nodes.data(), unforked[k].at, unforked[k].next);
+                               });
         }
         bvh.prim_ids.resize(n);
-        parallel_for(n, impl.threads, [&](std::size_t i) { bvh.prim_ids[i] = impl.refs[i].id; }, 65536);
+        impl.each(n, [&](std::size_t i) { bvh.prim_ids[i] = impl.refs[i].id; });
         return bvh;
     }
 
@@ -242,6 +255,9 @@ private:
         std::vector<Ref> refs;
         Config cfg;
         unsigned threads;
+        /// The build's team while no pool drains on it (null on one thread, and inside the pool's
+        /// tasks, whose large passes start teams of their own).
+        detail::WorkTeam* team;
         /// Subtrees for other threads (a node of at least parallel_threshold primitives at a
         /// Buf's root hands its right child here and goes on with its left); null on one thread.
         detail::TaskQueue<Task>* pool;
@@ -250,6 +266,21 @@ private:
         bool forks(std::size_t prims) const noexcept { return pool && prims >= cfg.parallel_threshold; }
 
         static constexpr std::size_t kParallelPass = 65536;
+
+        /// Whether a pass over n records runs on several threads: from kMinParallelPass on the
+        /// build's team, from kParallelPass inside the pool's tasks (a team of its own per pass).
+        bool wide_pass(std::size_t n) const noexcept {
+            return threads > 1 && n >= (team ? detail::kMinParallelPass : kParallelPass);
+        }
+
+        /// fn(i) for i in [0, n): one chunk per member of the build's team when there is one.
+        template <class Fn>
+        void each(std::size_t n, Fn&& fn) const {
+            const std::size_t chunks = team ? team->size() : 1;
+            detail::run_chunks(team, 1, n, chunks, [&](std::size_t, std::size_t lo, std::size_t hi) {
+                for (std::size_t i = lo; i < hi; ++i) fn(i);
+            });
+        }
 
         void bounds(std::uint32_t b, std::uint32_t e, AABB& box, AABB& cbox) const {
             auto pass = [&](std::size_t lo, std::size_t hi, AABB& bx, AABB& cb) {
@@ -262,13 +293,13 @@ private:
                 cb.grow(gc.aabb());
             };
             const std::size_t n = e - b;
-            if (n < kParallelPass || threads == 1) {
+            if (!wide_pass(n)) {
                 pass(b, e, box, cbox);
                 return;
             }
             constexpr std::size_t kChunks = 16;
             std::array<AABB, kChunks> bx{}, cb{};
-            parallel_chunks(n, kChunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+            detail::run_chunks(team, threads, n, kChunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
                 pass(b + lo, b + hi, bx[c], cb[c]);
             });
             for (std::size_t c = 0; c < kChunks; ++c) {
@@ -319,13 +350,13 @@ private:
             };
             out.assign(3 * nb, Bin{});
             const std::size_t n = e - b;
-            if (n < kParallelPass || threads == 1) {
+            if (!wide_pass(n)) {
                 pass(b, e, out.data());
                 return;
             }
             constexpr std::size_t kChunks = 16;
             std::vector<Bin> part(kChunks * 3 * nb);
-            parallel_chunks(n, kChunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+            detail::run_chunks(team, threads, n, kChunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
                 pass(b + lo, b + hi, part.data() + c * 3 * nb);
             });
             for (std::size_t c = 0; c < kChunks; ++c)
@@ -628,6 +659,7 @@ private:
             buf.kids[0] = std::make_unique<Buf>(mid - b, forks(mid - b));
             buf.kids[1] = std::make_unique<Buf>(e - mid, forks(e - mid));
             pool->push({buf.kids[1].get(), mid, e, depth + 1, rbox, rcbox}, e - mid);
+            if (team) return pool->push({buf.kids[0].get(), b, mid, depth + 1, lbox, lcbox}, mid - b);  // the root, before the drain
             this->node(*buf.kids[0], 0, b, mid, depth + 1, lbox, lcbox);
         }
     };

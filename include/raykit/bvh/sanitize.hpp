@@ -26,12 +26,13 @@ namespace raykit::detail {
 inline constexpr float kFloatMax = std::numeric_limits<float>::max();
 
 /// Bounds of a set of points (finite ones only) and whether any was not
-/// finite. Exact for any chunking.
-inline AABB finite_point_bounds(std::span<const vec3> pts, unsigned threads, bool* any_bad = nullptr) {
+/// finite. Exact for any chunking. On `team` when a build has one.
+inline AABB finite_point_bounds(std::span<const vec3> pts, unsigned threads, bool* any_bad = nullptr,
+                                WorkTeam* team = nullptr) {
     const std::size_t chunks = pass_chunks(pts.size());
     std::vector<AABB> part(chunks);
     std::vector<std::uint8_t> bad(chunks, 0);
-    parallel_chunks(pts.size(), chunks, threads, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+    run_chunks(team, threads, pts.size(), chunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
         AABB b;
         bool nb = false;
         for (std::size_t i = lo; i < hi; ++i) {
@@ -59,10 +60,10 @@ struct SanitizedCenters {
 };
 
 /// SanitizedCenters of `centers`: the same for any thread count (finite_point_bounds is exact).
-inline SanitizedCenters sanitize_centers(std::span<const vec3> centers, unsigned threads) {
+inline SanitizedCenters sanitize_centers(std::span<const vec3> centers, unsigned threads, WorkTeam* team = nullptr) {
     SanitizedCenters s;
     bool bad = false;
-    s.bounds = finite_point_bounds(centers, threads, &bad);
+    s.bounds = finite_point_bounds(centers, threads, &bad, team);
     s.view = centers;
     if (bad) {
         s.copy.assign(centers.begin(), centers.end());

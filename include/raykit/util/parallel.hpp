@@ -7,11 +7,11 @@
 // for. Chunk c of [0, n) covers [n·c/chunks, n·(c+1)/chunks) and runs on member
 // c mod members, whichever entry point runs it.
 //
-// detail::WorkTeam is the only code in raykit that starts threads. A bottom-up
-// build keeps one for its many short passes: starting and joining a
-// std::thread costs ~50 µs, waking a waiting member a few µs, and a PLOC or
-// sort-by-axis build runs hundreds of passes. parallel_chunks, parallel_for and
-// fork_join (and detail::TaskQueue::drain) start a team for one call (they block instead of spinning while
+// detail::WorkTeam is the only code in raykit that starts threads. A build
+// keeps one for its passes: starting and joining a std::thread costs ~50 µs,
+// waking a waiting member about 1 µs, and a PLOC or sort-by-axis build runs
+// hundreds of passes, a binned SAH build nine and its pool. parallel_chunks, parallel_for and
+// fork_join start a team for one call (they block instead of spinning while
 // they wait). detail::run_chunks picks a build's team when it has one.
 //
 // One thread-count rule, resolve_threads: `threads == 0` means
@@ -218,8 +218,8 @@ void fork_join(bool fork, A&& a, B&& b) {
 namespace detail {
 
 /// Tasks that spawn tasks, of sizes known only as they are made (a top-down build's subtrees),
-/// run by a team: push() adds a task, drain() runs every task on `threads` threads (a one-call
-/// WorkTeam) until none waits and none runs, an idle thread taking the largest waiting one.
+/// run by a team: push() adds a task, drain() runs every task on a build's WorkTeam until none
+/// waits and none runs, an idle member taking the largest waiting one.
 /// (Forking two new threads per node down to a fixed depth left the bunny's four subtrees of
 /// 11-24k primitives to the OS scheduler, and the last ran alone; drained this way the binned
 /// SAH build is 4-10 % faster on two threads.) The first exception is rethrown by drain().
@@ -234,10 +234,11 @@ public:
         }
         cv_.notify_one();
     }
-    /// Runs run(task) for every task pushed before or during the call.
+    /// Runs run(task) for every task pushed before or during the call, on every member of
+    /// `team` (a build's; the tasks may not use it).
     template <class Run>
-    void drain(unsigned threads, Run&& run) {
-        WorkTeam(threads, false).each([&](unsigned) { work(run); });
+    void drain(WorkTeam& team, Run&& run) {
+        team.each([&](unsigned) { work(run); });
         if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
     }
 
