@@ -85,9 +85,9 @@ struct BlockBvhT {
     /// (primitive_refs has checked the range: the blocks are assembled without a second pass.)
     static BlockBvhT build(const MeshView& mesh, unsigned threads = 0) {
         const PrimitiveRefs r = primitive_refs(mesh, threads);
-        const Bvh bvh = BinnedSahBuilder::build(r.boxes, r.centers, sah_config(threads));
-        if constexpr (W == 2) return assemble(mesh, bvh, threads);
-        else return assemble(mesh, WideBvhT<W>::build(bvh), threads);
+        Bvh bvh = BinnedSahBuilder::build(r.boxes, r.centers, sah_config(threads));
+        if constexpr (W == 2) return assemble(mesh, std::move(bvh), threads);
+        else return assemble(mesh, WideBvhT<W>::build(std::move(bvh)), threads);
     }
 
     /// The leaf store the queries walk.
@@ -131,10 +131,11 @@ struct BlockBvhT {
     }
 
   private:
-    /// build(mesh, tree) without the range check.
-    static BlockBvhT assemble(const MeshView& mesh, const Tree& src, unsigned threads) {
+    /// build(mesh, tree) without the range check (the nodes moved from a tree the build made).
+    template <class T>
+    static BlockBvhT assemble(const MeshView& mesh, T&& src, unsigned threads) {
         BlockBvhT b;
-        b.tree.nodes = src.nodes;
+        b.tree.nodes = std::forward<T>(src).nodes;
         if constexpr (W != 2) b.tree.bounds = src.bounds;
         // first pass: number the blocks leaf by leaf, in node order
         struct Leaf {
