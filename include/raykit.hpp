@@ -2,7 +2,7 @@
 // (tests/umbrella_check.cmake keeps it so). For tracing alone, raykit/core.hpp is enough.
 //
 // Layers (each includes only the ones above it in this list):
-//   util/, math/     vectors, AABB, ray, hit, float utilities, the executor, radix sort
+//   util/, math/     vectors, AABB, ray, hit, float utilities, the executor, the block cache, radix sort
 //   simd/            the instruction-set levels and the CPU's (isa.hpp; scene/trace.hpp compiles
 //                    the walks once per level and calls the CPU's)
 //   intersect/       slab test, triangle tests (Watertight default, MollerTrumbore, ThesisTest)
@@ -17,6 +17,7 @@
 #include "raykit/config.hpp"
 #include "raykit/core.hpp"
 #include "raykit/util/parallel.hpp"
+#include "raykit/util/block_cache.hpp"
 #include "raykit/util/raw_array.hpp"
 #include "raykit/util/radix_sort.hpp"
 #include "raykit/math/types.hpp"

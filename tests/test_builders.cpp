@@ -801,6 +801,64 @@ TEST(Builders, ParallelHelpersClampTheThreadCount) {
     EXPECT_LE(ids.size(), std::size_t(kMaxThreads));
 }
 
+TEST(Builders, BlockCacheReusesFreedBlocksAndKeepsAtMost64MiB) {
+    using detail::BlockCache;
+    BlockCache& cache = BlockCache::get();
+    trim_build_memory();
+    EXPECT_EQ(cache.held(), 0u);
+    // size classes: eight per power of two from 256 KiB, at most 1/8 wasted; smaller sizes as asked
+    std::mt19937_64 rng(7);
+    for (int i = 0; i < 10000; ++i) {
+        const std::size_t b = std::size_t(1) + rng() % (std::size_t(200) << 20);
+        const std::size_t r = BlockCache::rounded(b);
+        if (b < BlockCache::kMinBytes) {
+            ASSERT_EQ(r, b);
+            continue;
+        }
+        ASSERT_GE(r, b) << b;
+        ASSERT_LE(r - b, b / 8) << b;
+        ASSERT_EQ(BlockCache::rounded(r), r) << b;  // a class rounds to itself
+    }
+    // a freed block waits for the next request of its class, and only for that
+    const std::size_t mib = std::size_t(1) << 20;
+    auto* p = static_cast<unsigned char*>(cache.allocate(mib + 5));
+    ASSERT_EQ(reinterpret_cast<std::uintptr_t>(p) % 64, 0u);
+    std::memset(p, 0xAB, mib + 5);
+    cache.deallocate(p, mib + 5);
+    EXPECT_EQ(cache.held(), BlockCache::rounded(mib + 5));
+#ifdef RAYKIT_BLOCK_CACHE_ASAN
+    EXPECT_TRUE(__asan_address_is_poisoned(p + 100));  // a use after free is still caught
+#endif
+    void* other = cache.allocate(4 * mib);
+    EXPECT_NE(other, static_cast<void*>(p));
+    EXPECT_EQ(cache.allocate(mib + 1), static_cast<void*>(p));  // same class: the same block
+    EXPECT_EQ(cache.held(), 0u);
+#ifdef RAYKIT_BLOCK_CACHE_ASAN
+    EXPECT_FALSE(__asan_address_is_poisoned(p + 100));
+#endif
+    cache.deallocate(p, mib + 1);
+    cache.deallocate(other, 4 * mib);
+    // at most 64 MiB wait, the oldest leaving first; trim gives them all back
+    std::vector<void*> big;
+    for (int i = 0; i < 10; ++i) big.push_back(cache.allocate(10 * mib + std::size_t(i)));
+    for (void* b : big) cache.deallocate(b, 10 * mib);
+    EXPECT_LE(cache.held(), BlockCache::kMaxBytes);
+    EXPECT_GE(cache.held(), BlockCache::kMaxBytes - 10 * mib);
+    trim_build_memory();
+    EXPECT_EQ(cache.held(), 0u);
+    // trees built into reused (dirty) blocks are the trees built into fresh ones
+    const Mesh m = make_bumpy_torus(30000);
+    const BlockBvh8 first = BlockBvh8::build(m, 2u);
+    for (int round = 0; round < 2; ++round) {
+        const BlockBvh8 again = BlockBvh8::build(m, 2u);
+        ASSERT_EQ(again.tree.nodes.size(), first.tree.nodes.size());
+        ASSERT_EQ(again.blocks.size(), first.blocks.size());
+        EXPECT_EQ(std::memcmp(again.tree.nodes.data(), first.tree.nodes.data(), first.tree.nodes.size() * sizeof(first.tree.nodes[0])), 0);
+        EXPECT_EQ(std::memcmp(again.blocks.data(), first.blocks.data(), first.blocks.size() * sizeof(first.blocks[0])), 0);
+    }
+    EXPECT_GT(cache.held(), 0u);  // the builds' scratch waits for the next build
+}
+
 TEST(Generate, SizesTheGeneratorsCannotMakeAreRejected) {
     EXPECT_THROW(make_bumpy_torus(std::numeric_limits<std::size_t>::max()), std::length_error);
     EXPECT_THROW(make_bumpy_torus(std::size_t(1) << 40), std::length_error);

@@ -54,6 +54,7 @@
 #include "raykit/bvh/sanitize.hpp"
 #include "raykit/simd/isa.hpp"
 #include "raykit/util/parallel.hpp"
+#include "raykit/util/raw_array.hpp"
 
 namespace raykit {
 
@@ -252,7 +253,7 @@ private:
         AABB box, cbox;
     };
     struct Impl {
-        std::vector<Ref> refs;
+        detail::RawArray<Ref> refs;  ///< every record written by build() before any pass reads it
         Config cfg;
         unsigned threads;
         /// The build's team while no pool drains on it (null on one thread, and inside the pool's

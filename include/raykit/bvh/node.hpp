@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "raykit/math/aabb.hpp"
+#include "raykit/util/block_cache.hpp"
 
 namespace raykit {
 
@@ -34,6 +35,7 @@ static_assert(offsetof(Node, box) == 0 && offsetof(Node, index) == 24 && offseto
 /// Allocator that places element 1 of an array of 32-byte nodes on a 64-byte
 /// boundary. Children come in pairs starting at odd indices (root 0, its
 /// children 1 and 2, ...), so every pair then fills exactly one cache line.
+/// Large arrays come from detail::BlockCache (util/block_cache.hpp).
 template <class T>
 struct PairAlignedAllocator {
     static_assert(sizeof(T) == 32, "PairAlignedAllocator is for 32-byte nodes");
@@ -42,12 +44,11 @@ struct PairAlignedAllocator {
     template <class U>
     PairAlignedAllocator(const PairAlignedAllocator<U>&) noexcept {}  // NOLINT implicit
     T* allocate(std::size_t n) {
-        void* p = ::operator new((n + 1) * sizeof(T), std::align_val_t(64));
+        void* p = detail::BlockCache::get().allocate((n + 1) * sizeof(T));
         return reinterpret_cast<T*>(static_cast<char*>(p) + 32);
     }
     void deallocate(T* p, std::size_t n) noexcept {
-        (void)n;
-        ::operator delete(reinterpret_cast<char*>(p) - 32, std::align_val_t(64));
+        detail::BlockCache::get().deallocate(reinterpret_cast<char*>(p) - 32, (n + 1) * sizeof(T));
     }
     template <class U>
     bool operator==(const PairAlignedAllocator<U>&) const noexcept {

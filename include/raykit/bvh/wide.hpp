@@ -38,6 +38,7 @@
 
 #include "raykit/bvh/node.hpp"
 #include "raykit/bvh/sah.hpp"
+#include "raykit/util/block_cache.hpp"
 
 namespace raykit {
 
@@ -80,15 +81,17 @@ static_assert(sizeof(WideNode8) == 256 && alignof(WideNode8) == 64);
 static_assert(std::is_standard_layout_v<WideNode8>);
 static_assert(offsetof(WideNode8, planes) == 0 && offsetof(WideNode8, index) == 192 && offsetof(WideNode8, count) == 224);
 
-/// std::allocator that aligns to 64 bytes (one WideNode starts each cache line pair).
+/// Allocator that aligns to 64 bytes (one WideNode starts each cache line pair); large arrays
+/// come from and go back to detail::BlockCache (util/block_cache.hpp).
 template <class T>
 struct CacheLineAllocator {
+    static_assert(alignof(T) <= 64);
     using value_type = T;
     CacheLineAllocator() = default;
     template <class U>
     CacheLineAllocator(const CacheLineAllocator<U>&) noexcept {}  // NOLINT implicit
-    T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t(64))); }
-    void deallocate(T* p, std::size_t) noexcept { ::operator delete(p, std::align_val_t(64)); }
+    T* allocate(std::size_t n) { return static_cast<T*>(detail::BlockCache::get().allocate(n * sizeof(T))); }
+    void deallocate(T* p, std::size_t n) noexcept { detail::BlockCache::get().deallocate(p, n * sizeof(T)); }
     template <class U>
     bool operator==(const CacheLineAllocator<U>&) const noexcept {
         return true;

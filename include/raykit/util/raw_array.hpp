@@ -5,7 +5,8 @@
 // keys, ids and boxes, one chunk per thread. With std::vector one thread would
 // zero (and page-fault) the whole array first; with RawArray each page is first
 // touched by the thread that writes it. Every element is written before it is
-// read, so nothing reads the missing initialisation.
+// read, so nothing reads the missing initialisation. Large arrays come from
+// BlockCache (block_cache.hpp), so a build reuses the pages the last one freed.
 #pragma once
 
 #include <algorithm>
@@ -16,6 +17,8 @@
 #include <type_traits>
 #include <utility>
 
+#include "raykit/util/block_cache.hpp"
+
 namespace raykit::detail {
 
 /// Array storage that is not initialised: large scratch arrays are first
@@ -25,6 +28,7 @@ namespace raykit::detail {
 template <class T>
 class RawArray {
     static_assert(std::is_trivially_copyable_v<T> && std::is_trivially_destructible_v<T>);
+    static_assert(alignof(T) <= 64);
 
 public:
     RawArray() = default;
@@ -51,7 +55,7 @@ public:
     }
     void reserve(std::size_t cap) {
         if (cap <= cap_) return;
-        T* q = static_cast<T*>(::operator new(cap * sizeof(T), std::align_val_t(alignof(T))));
+        T* q = static_cast<T*>(BlockCache::get().allocate(cap * sizeof(T)));
         if (n_) std::memcpy(static_cast<void*>(q), p_, n_ * sizeof(T));
         release();
         p_ = q;
@@ -79,7 +83,7 @@ public:
 
 private:
     void release() noexcept {
-        if (p_) ::operator delete(static_cast<void*>(p_), std::align_val_t(alignof(T)));
+        if (p_) BlockCache::get().deallocate(p_, cap_ * sizeof(T));
         p_ = nullptr;
         cap_ = 0;
     }
