@@ -261,7 +261,8 @@ private:
         /// tasks, whose large passes start teams of their own).
         detail::WorkTeam* team;
         /// Subtrees for other threads (a node of at least parallel_threshold primitives at a
-        /// Buf's root hands its right child here and goes on with its left); null on one thread.
+        /// Buf's root hands its right child here and goes on with its left; the tree's root, split
+        /// before the drain, hands both); null on one thread.
         detail::TaskQueue<Task>* pool;
 
         /// Whether a Buf's root over `prims` primitives hands its children on (children()).
@@ -691,7 +692,7 @@ private:
         }
 
         /// Writes the inner node and builds its two children (the right one in the pool when
-        /// the node is large).
+        /// the node is large; both when it is the root, before the drain).
         void children(Buf& buf, std::uint32_t node, std::uint32_t b, std::uint32_t mid, std::uint32_t e, int depth,
                       const AABB& box, const AABB& lbox, const AABB& lcbox, const AABB& rbox, const AABB& rcbox) {
             // only a Buf's root forks (so did its parent, by the same rule: a larger node)
