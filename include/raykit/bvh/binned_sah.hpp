@@ -635,7 +635,7 @@ private:
             const auto a = static_cast<std::size_t>(axis);
             const float lo = bn.lo[axis], scale = bn.scale[axis], last = static_cast<float>(bn.nb - 1);
             const auto front = [&](const Ref& r) {
-                float f = (r.c[a] - lo) * scale;
+                float f = ((&r.c.x)[a] - lo) * scale;
                 f = f > 0.0f ? f : 0.0f;
                 f = f < last ? f : last;
                 return static_cast<std::size_t>(f) < split;
