@@ -141,7 +141,8 @@ struct BinnedSahBuilder {
         {
             const detail::SanitizedCenters c = detail::sanitize_centers(centers, threads, impl.team);
             impl.refs.resize(n);
-            impl.each(n, [&](std::size_t i) { impl.refs[i] = {boxes[i], c[i], static_cast<std::uint32_t>(i)}; });
+            detail::for_range(0, n, threads, impl.team,
+                              [&](std::size_t i) { impl.refs[i] = {boxes[i], c[i], static_cast<std::uint32_t>(i)}; });
         }
         AABB box, cbox;
         impl.bounds(0, n, box, cbox);
@@ -170,7 +171,7 @@ struct BinnedSahBuilder {
                                });
         }
         bvh.prim_ids.resize(n);
-        impl.each(n, [&](std::size_t i) { bvh.prim_ids[i] = impl.refs[i].id; });
+        detail::for_range(0, n, threads, impl.team, [&](std::size_t i) { bvh.prim_ids[i] = impl.refs[i].id; });
         return bvh;
     }
 
@@ -274,15 +275,6 @@ private:
         /// build's team, from kParallelPass inside the pool's tasks (a team of its own per pass).
         bool wide_pass(std::size_t n) const noexcept {
             return threads > 1 && n >= (team ? detail::kMinParallelPass : kParallelPass);
-        }
-
-        /// fn(i) for i in [0, n): one chunk per member of the build's team when there is one.
-        template <class Fn>
-        void each(std::size_t n, Fn&& fn) const {
-            const std::size_t chunks = team ? team->size() : 1;
-            detail::run_chunks(team, 1, n, chunks, [&](std::size_t, std::size_t lo, std::size_t hi) {
-                for (std::size_t i = lo; i < hi; ++i) fn(i);
-            });
         }
 
         void bounds(std::uint32_t b, std::uint32_t e, AABB& box, AABB& cbox) const {

@@ -211,20 +211,6 @@ inline bool limit_depth(MergeTree& t, std::span<const vec3> centers) {
     return true;
 }
 
-/// fn(k) for the nodes k in [begin, end) of one batch (unrelated to each
-/// other): split among threads when the batch is large.
-template <class Fn>
-void for_batch(std::size_t begin, std::size_t end, unsigned threads, WorkTeam* team, Fn& fn) {
-    const std::size_t m = end - begin;
-    if (threads > 1 && m >= kMinParallelPass) {
-        run_chunks(team, threads, m, pass_chunks(m), [&](std::size_t, std::size_t lo, std::size_t hi) {
-            for (std::size_t k = begin + lo; k < begin + hi; ++k) fn(k);
-        });
-    } else {
-        for (std::size_t k = begin; k < end; ++k) fn(k);
-    }
-}
-
 /// Calls node(k) for every inner node, batch after batch (children before
 /// parents); large batches are split among threads.
 template <class Fn>
@@ -234,7 +220,7 @@ void sweep_batches(const MergeTree& t, unsigned threads, Fn& node, WorkTeam* tea
     for (const std::uint32_t end_u : t.batch_end) {
         const std::size_t end = std::min<std::size_t>(end_u, K);
         if (end <= begin) continue;
-        for_batch(begin, end, threads, team, node);
+        for_range(begin, end, threads, team, node);
         begin = end;
     }
     for (std::size_t k = begin; k < K; ++k) node(k);
@@ -354,7 +340,7 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
             }
         };
         for (std::size_t bi = t.batch_end.size(); bi-- > 0;) {
-            for_batch(bi == 0 ? 0 : t.batch_end[bi - 1], t.batch_end[bi], threads, team, down);
+            for_range(bi == 0 ? 0 : t.batch_end[bi - 1], t.batch_end[bi], threads, team, down);
         }
         return bvh;
     }

@@ -293,5 +293,19 @@ void run_chunks(WorkTeam* team, unsigned threads, std::size_t n, std::size_t chu
     else parallel_chunks(n, chunks, threads, fn);
 }
 
+/// fn(k) for k in [begin, end), elements unrelated to each other: in pass_chunks
+/// on `team` (or threads of their own) when there are kMinParallelPass or more, else in order.
+template <class Fn>
+void for_range(std::size_t begin, std::size_t end, unsigned threads, WorkTeam* team, Fn&& fn) {
+    const std::size_t m = end - begin;
+    if (threads > 1 && m >= kMinParallelPass) {
+        run_chunks(team, threads, m, pass_chunks(m), [&](std::size_t, std::size_t lo, std::size_t hi) {
+            for (std::size_t k = begin + lo; k < begin + hi; ++k) fn(k);
+        });
+    } else {
+        for (std::size_t k = begin; k < end; ++k) fn(k);
+    }
+}
+
 }  // namespace detail
 }  // namespace raykit
