@@ -279,7 +279,7 @@ TEST(Batch, BlockTreePacketsEqualSingleRaysBitForBit) {
     const Mesh m = make_bumpy_torus(20000);
     const BlockBvh8 b = BlockBvh8::build(m);
     const BlockBvh blocks4 = BlockBvh::build(m, build_bvh(MeshView(m), BuildOptions{}));
-    const std::vector<Ray> rays = raykit::test::batch_test_rays(m, 3001, 21);
+    const std::vector<Ray> rays = raykit::test::packet_test_rays(m, 3001, 21);
     std::vector<Hit> single(rays.size());
     std::vector<bool> single_any(rays.size());
     std::size_t hits = 0;

@@ -746,18 +746,7 @@ TEST(SceneCpu, DynamicObjectsMoveFromTheirRestCopyAndRefit) {
 
 namespace {
 
-/// batch_test_rays plus its random rays again, sorted by octant: packets of incoherent rays
-/// that share an octant, so the packet walk (not its ray-by-ray fallback) takes them.
-std::vector<Ray> packet_test_rays(const Mesh& m, std::size_t n_random, std::uint64_t seed) {
-    std::vector<Ray> rays = raykit::test::batch_test_rays(m, n_random, seed);
-    std::vector<Ray> sorted = random_rays(m, n_random, seed + 100);
-    const auto octant = [](const Ray& r) {
-        return int(std::signbit(r.dir.x)) | int(std::signbit(r.dir.y)) << 1 | int(std::signbit(r.dir.z)) << 2;
-    };
-    std::stable_sort(sorted.begin(), sorted.end(), [&](const Ray& a, const Ray& b) { return octant(a) < octant(b); });
-    rays.insert(rays.end(), sorted.begin(), sorted.end());
-    return rays;
-}
+using raykit::test::packet_test_rays;
 
 /// A tracer's (MeshTracer's, DeviceScene's) answers on a ray set: closest hits, any-hit flags.
 struct Answers {

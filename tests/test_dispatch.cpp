@@ -69,7 +69,7 @@ TEST_F(Levels, EveryLevelGivesTheSameAnswersAsBruteForce) {
     const WideBvh8 wide = WideBvh8::build(bvh);
     const BlockBvh8 blocks8 = BlockBvh8::build(m);
     const BlockBvh blocks4 = BlockBvh::build(m, bvh);
-    const std::vector<Ray> rays = test::batch_test_rays(m, 2001, 5);
+    const std::vector<Ray> rays = test::packet_test_rays(m, 2001, 5);
 
     // the oracle: brute force with the scalar test, compiled once (no level)
     std::vector<Hit> oracle(rays.size());
@@ -139,10 +139,15 @@ TEST_F(Levels, EveryLevelGivesTheSameAnswersAsBruteForce) {
             std::vector<std::uint8_t> occluded(rays.size());
             intersect_closest(*b, rays, batch, 1);
             intersect_any(*b, rays, occluded, 1);
+            std::size_t batch_wrong = 0;  // packets (frusta at this level's width) against brute force
             for (std::size_t i = 0; i < rays.size(); ++i) {
+                batch_wrong += batch[i].prim != oracle[i].prim ||
+                               std::bit_cast<std::uint32_t>(batch[i].t) != std::bit_cast<std::uint32_t>(oracle[i].t);
+                batch_wrong += (occluded[i] != 0) != oracle_any[i];
                 a.add(batch[i]);
                 a.add(occluded[i] != 0);
             }
+            EXPECT_EQ(batch_wrong, 0u) << isa_name(level) << ": batch answers unlike brute force's";
         }
         std::vector<Hit> sb(scene_rays.size());
         std::vector<std::uint8_t> so(scene_rays.size());

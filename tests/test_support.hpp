@@ -1,6 +1,8 @@
 // Helpers shared by raykit's test programs (not part of the library).
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <random>
 #include <vector>
@@ -63,6 +65,39 @@ inline std::vector<Ray> batch_test_rays(const Mesh& m, std::size_t n_random, std
         rays.push_back(r);
     }
     for (std::size_t i = 0; i < rays.size(); i += 13) rays[i].tmax = 0.5f * glm::length(e) / glm::length(rays[i].dir);
+    return rays;
+}
+
+/// batch_test_rays, then packets whose lanes share an octant but not an origin, so packet walks
+/// take them and their frusta are wide: batch_test_rays's random rays again (another seed),
+/// sorted by octant, and shadow rays (tmax 1) from triangle centroids to one light outside the
+/// mesh's box, 16 triangles of one region a packet.
+inline std::vector<Ray> packet_test_rays(const Mesh& m, std::size_t n_random, std::uint64_t seed) {
+    std::vector<Ray> rays = batch_test_rays(m, n_random, seed);
+    std::vector<Ray> sorted = random_rays(m, n_random, seed + 100);
+    const auto octant = [](const Ray& r) {
+        return int(std::signbit(r.dir.x)) | int(std::signbit(r.dir.y)) << 1 | int(std::signbit(r.dir.z)) << 2;
+    };
+    std::stable_sort(sorted.begin(), sorted.end(), [&](const Ray& a, const Ray& b) { return octant(a) < octant(b); });
+    rays.insert(rays.end(), sorted.begin(), sorted.end());
+    AABB box;
+    for (const vec3& p : m.positions) box.grow(p);
+    const vec3 light = box.center() + box.extent() * vec3(0.9f, 1.3f, 1.7f);
+    const std::size_t tris = m.triangles.size();
+    std::mt19937_64 rng(seed + 200);
+    for (std::size_t k = 0; k < 64 && tris > 0; ++k) {
+        const std::size_t first = rng() % tris;
+        for (std::size_t j = 0; j < 16; ++j) {
+            const Triangle& t = m.triangles[(first + j * 7) % tris];
+            const vec3 c = (m.positions[t.v[0]] + m.positions[t.v[1]] + m.positions[t.v[2]]) / 3.0f;
+            Ray r;
+            r.org = c;
+            r.dir = light - c;
+            r.tmin = 1e-4f;
+            r.tmax = 1.0f;
+            rays.push_back(r);
+        }
+    }
     return rays;
 }
 

@@ -19,8 +19,21 @@
 // single ray's do): one_octant() tests it, and scene/trace.hpp walks packets whose rays point
 // into several octants ray by ray (they are not coherent).
 //
-// Ordering: children are entered nearest first by the entry distance of the packet's first
-// active ray (the others follow it: camera tiles and shadow rays to one light are coherent).
+// The frustum: where every lane's origin and reciprocal direction are finite (and the
+// reciprocals non-zero), a node first tests its W child boxes against the packet's frustum in
+// one W-wide test (detail::frustum_enter: per axis the extreme origin and reciprocal that bound
+// every lane's slab distances, the argument is there), which keeps a superset of the children
+// some lane enters. The nearest of them by the frustum's entry bound is tested lane by lane at
+// once; the others are pushed with the node's lanes and tested lane by lane when popped. So a
+// child no lane can enter costs a share of one W-wide test instead of a 16-lane test, and a
+// pushed child is tested once instead of twice. Measured against the walk without it
+// (bench_trace, BlockBvh8 batch, 1 thread, two interleaved runs, ms): camera tiles bunny closest
+// 7.49-7.68 -> 7.13-7.47, 100k torus 9.01-9.41 -> 8.40, any 7.84-7.93 -> 7.30; rows of 16
+// 3-5 % faster; the CPU renderer's thesis frame with shadows 53.1-54.6 -> 51.5-51.8.
+// Otherwise (a zero or non-finite direction component, a non-finite origin) children are
+// tested lane by lane at the node and entered nearest first by the entry distance of the
+// packet's first active ray.
+//
 // A popped entry is re-tested against its lanes' current tmax (its box is read again from the
 // parent node, still in cache), so lanes that found nearer hits drop out before its leaf.
 //
@@ -92,6 +105,11 @@ namespace detail {
 template <int N>
 struct PacketLanes;
 template <>
+struct PacketLanes<4> {
+    typedef float f __attribute__((vector_size(16)));
+    typedef std::int32_t i __attribute__((vector_size(16)));
+};
+template <>
 struct PacketLanes<8> {
     typedef float f __attribute__((vector_size(32)));
     typedef std::int32_t i __attribute__((vector_size(32)));
@@ -111,6 +129,9 @@ RAYKIT_INLINE unsigned lane_bits(const typename PacketLanes<N>::i& m) noexcept {
 #if RAYKIT_ISA_AVX
     if constexpr (N == 8) return static_cast<unsigned>(_mm256_movemask_ps(reinterpret_cast<__m256>(m)));
 #endif
+#if RAYKIT_ISA_SSE2
+    if constexpr (N == 4) return static_cast<unsigned>(_mm_movemask_ps(reinterpret_cast<__m128>(m)));
+#endif
     unsigned b = 0;
     for (int k = 0; k < N; ++k) b |= unsigned(m[k] & 1) << k;
     return b;
@@ -127,6 +148,11 @@ struct RayPacket {
     vf org[3], inv[3], tmin;
     alignas(64) float tmax[std::size_t(N)];  ///< per lane; closest-hit leaves shrink it
     int near_row[3], far_row[3];             ///< WideNode::planes rows of the near / far planes
+    /// The packet's frustum (detail::frustum_enter), per axis: the lanes' origin that makes
+    /// every lane's near-plane distance smallest and the one that makes its far-plane distance
+    /// largest, the smallest and largest reciprocal; the smallest tmin. Only where `frustum`.
+    float fr_org_near[3], fr_org_far[3], fr_inv_lo[3], fr_inv_hi[3], fr_tmin;
+    bool frustum;  ///< every lane's origin finite and reciprocal finite and non-zero
 
     RayPacket(const Ray* rays, unsigned n) noexcept {
         for (int k = 0; k < N; ++k) {
@@ -140,9 +166,24 @@ struct RayPacket {
             tmax[k] = r.tmax;
         }
         const RayInv ri(rays[0].dir);
+        frustum = true;
+        fr_tmin = kInf;
+        for (int k = 0; k < N; ++k) fr_tmin = tmin[k] < fr_tmin ? tmin[k] : fr_tmin;  // a NaN tmin: that lane enters nothing
         for (int a = 0; a < 3; ++a) {
             near_row[a] = 2 * a + ri.octant[a];
             far_row[a] = 2 * a + 1 - ri.octant[a];
+            float olo = org[a][0], ohi = olo, ilo = inv[a][0], ihi = ilo;
+            for (int k = 0; k < N; ++k) {
+                const float o = org[a][k], v = inv[a][k];
+                frustum = frustum && std::isfinite(o) && std::isfinite(v) && v != 0.0f;
+                olo = std::min(olo, o), ohi = std::max(ohi, o);
+                ilo = std::min(ilo, v), ihi = std::max(ihi, v);
+            }
+            // (plane − o)·v falls as o grows where v > 0, rises where v < 0 (one octant: one sign)
+            fr_org_near[a] = ri.octant[a] ? olo : ohi;
+            fr_org_far[a] = ri.octant[a] ? ohi : olo;
+            fr_inv_lo[a] = ilo;
+            fr_inv_hi[a] = ihi;
         }
     }
 };
@@ -174,6 +215,39 @@ RAYKIT_INLINE unsigned packet_enter(const RayPacket<N>& p, const float* near, co
     const vf tf = (tfx < f2 ? tfx : f2) * kSlabExitScale;
     if (tn_out) __builtin_memcpy(tn_out, &tn, sizeof(tn));
     return lane_bits<N>(tn <= tf) & mask;
+}
+
+/// The children of wide node `n` that some lane of `p` may enter: a superset of the lanes'
+/// packet_enter_child over all children, W children in one vector test (needs p.frustum).
+/// Each lane's entry distance is fl(fl(plane − o)·v), which rounding keeps monotone in o and,
+/// for a fixed plane − o, in v; so the extreme origin and the smaller or larger of the two
+/// extreme reciprocals bound it below for near planes and above for far planes, and the max/min
+/// chains and the exit widening keep the order: a lane that enters a box enters its frustum
+/// box. tmax is left out (a pushed child's lanes are tested at its pop, against their tmax).
+/// Writes the lower bounds of the entry distances to tn_out (W floats).
+template <int W, int N>
+RAYKIT_INLINE unsigned frustum_enter(const RayPacket<N>& p, const WideNodeT<W>& n, float* tn_out) noexcept {
+    using vw = typename PacketLanes<W>::f;
+    vw lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+        vw pn, pf;
+        __builtin_memcpy(&pn, n.planes[p.near_row[a]], sizeof(pn));
+        __builtin_memcpy(&pf, n.planes[p.far_row[a]], sizeof(pf));
+        const vw dn = pn - p.fr_org_near[a], df = pf - p.fr_org_far[a];
+        const vw n0 = dn * p.fr_inv_lo[a], n1 = dn * p.fr_inv_hi[a];
+        const vw f0 = df * p.fr_inv_lo[a], f1 = df * p.fr_inv_hi[a];
+        lo[a] = n0 < n1 ? n0 : n1;  // both NaN or neither (a NaN plane)
+        hi[a] = f0 > f1 ? f0 : f1;
+    }
+    const vw tmin = p.fr_tmin - vw{}, inf = kInf - vw{};
+    const vw n1 = lo[2] > tmin ? lo[2] : tmin;
+    const vw n2 = lo[1] > n1 ? lo[1] : n1;
+    const vw tn = lo[0] > n2 ? lo[0] : n2;
+    const vw f1 = hi[2] < inf ? hi[2] : inf;
+    const vw f2 = hi[1] < f1 ? hi[1] : f1;
+    const vw tf = (hi[0] < f2 ? hi[0] : f2) * kSlabExitScale;
+    __builtin_memcpy(tn_out, &tn, sizeof(tn));
+    return lane_bits<W>(tn <= tf);
 }
 
 /// packet_enter for child `i` of wide node `n`.
@@ -233,6 +307,41 @@ unsigned traverse_packet(const WideBvhT<W>& bvh, const RayPacket<N>& p, unsigned
                 finished |= done;
                 active &= ~done;
                 if (!active) return finished;
+            }
+        } else if (cur_count == 0 && p.frustum) {
+            // the frustum picks the children some lane may enter, nearest first by its bound;
+            // the first is tested lane by lane now, the rest when popped
+            const WideNodeT<W>& n = nodes[cur_index];
+            alignas(64) float tn[std::size_t(W)];
+            unsigned cand = detail::frustum_enter(p, n, tn);
+            float key[std::size_t(W)];
+            int entered[std::size_t(W)];
+            int k = 0;
+            for (; cand; cand &= cand - 1) {
+                const int i = std::countr_zero(cand);
+                int j = k++;
+                while (j > 0 && key[j - 1] > tn[i]) {
+                    key[j] = key[j - 1];
+                    entered[j] = entered[j - 1];
+                    --j;
+                }
+                key[j] = tn[i];
+                entered[j] = i;
+            }
+            if (k > 0) {
+                if (sp + k - 1 > kStack)
+                    throw std::length_error("raykit::traverse_packet: wide tree deeper than RAYKIT_BVH_MAX_DEPTH");
+                for (int j = k - 1; j >= 1; --j) {
+                    const int i = entered[j];
+                    stack[sp++] = {n.index[i], n.count[i], cur_index, std::uint32_t(i) << 24 | cur_mask};
+                }
+                const unsigned m = detail::packet_enter_child(p, n, entered[0], cur_mask, nullptr);
+                if (m) {
+                    cur_index = n.index[entered[0]];
+                    cur_count = n.count[entered[0]];
+                    cur_mask = m;
+                    continue;
+                }
             }
         } else if (cur_count == 0) {
             const WideNodeT<W>& n = nodes[cur_index];

@@ -10,8 +10,13 @@
 // so every lane's answer is its single-ray answer bit for bit: a closest hit is the smallest
 // (t, instance, triangle) over the triangles a ray tests in boxes it enters, whatever the
 // visiting order, and a box that holds a closer hit is entered by the same per-lane arithmetic
-// (z, y, x axis order, NaN candidates never deciding, the exit widened once). Children are
-// entered nearest first by the first active lane's entry distance. Below a node reached by
+// (z, y, x axis order, NaN candidates never deciding, the exit widened once). As on the CPU,
+// where every lane's origin and reciprocal are finite a node tests its 8 slots against the
+// packet's frustum first (rk_packet_frustum, one float8 test) and only the slots it keeps lane
+// by lane, the nearest at once and the rest when popped (bench_cl camera rows, PoCL, three
+// interleaved runs, ms: bunny closest 7.18-7.56 -> 6.71-7.18, 100k torus 9.01-9.37 ->
+// 8.70-8.99, any-hit unchanged); otherwise children are entered nearest first by the first
+// active lane's entry distance. Below a node reached by
 // RK_PACKET_SWITCH (3) active lanes or fewer, each lane walks alone (rk_object_walk, the
 // single-ray walk from that node), which changes no answer by the same argument.
 //
@@ -65,6 +70,12 @@ RK_INLINE uint rk_lane_bits(const int16 m) {
 typedef struct {
     float16 org[3], inv[3], tmin;
     int wnear[3], wfar[3];
+    /* the frustum of the lanes being walked (rk_packet_frustum), per axis: the origin that makes
+       every lane's near-plane distance smallest and the one that makes its far-plane distance
+       largest, the smallest and largest reciprocal; the smallest tmin; frustum: whether they hold
+       (every lane's origin finite, its reciprocal finite and non-zero; full nodes only) */
+    float fo_near[3], fo_far[3], fi_lo[3], fi_hi[3], ftmin;
+    int frustum;
 } rk_packet;
 
 /* Lanes of `mask` entering the box whose near planes are n[] and far planes f[] within
@@ -97,6 +108,68 @@ RK_INLINE uint rk_packet_child(const rk_packet* p, const float* tm, __global con
     __global const float* f = (__global const float*)n;
     return rk_packet_enter(p, tm, f[p->wnear[0] + i], f[p->wnear[1] + i], f[p->wnear[2] + i], f[p->wfar[0] + i],
                            f[p->wfar[1] + i], f[p->wfar[2] + i], mask, tn_out);
+#endif
+}
+
+#ifndef RK_QNODES
+/* The slots of node `n` that some lane of `p` may enter: a superset of rk_packet_child's lanes
+   over all slots (unused slots left out), all 8 in one float8 test (the CPU's frustum_enter,
+   where the argument is). Writes lower bounds of the entry distances to tn_out. */
+RK_INLINE uint rk_packet_frustum(const rk_packet* p, __global const rk_onode* n, float* tn_out) {
+    __global const float* f = (__global const float*)n;
+    float8 t0 = (float8)(p->ftmin), t1 = (float8)(INFINITY);
+    for (int a = 2; a >= 0; --a) {  /* z, y, x, as rk_packet_enter's chains */
+        const float8 dn = vload8(0, f + p->wnear[a]) - p->fo_near[a];
+        const float8 df = vload8(0, f + p->wfar[a]) - p->fo_far[a];
+        const float8 n0 = dn * p->fi_lo[a], n1 = dn * p->fi_hi[a];
+        const float8 f0 = df * p->fi_lo[a], f1 = df * p->fi_hi[a];
+        const float8 lo = select(n1, n0, isless(n0, n1)), hi = select(f1, f0, isgreater(f0, f1));
+        t0 = select(t0, lo, isgreater(lo, t0));
+        t1 = select(t1, hi, isless(hi, t1));
+    }
+    t1 = t1 * RK_SLAB_EXIT_SCALE;
+    vstore8(t0, 0, tn_out);
+    const int8 b = islessequal(t0, t1) & (int8)(1, 2, 4, 8, 16, 32, 64, 128);
+    const int4 b4 = b.lo | b.hi;
+    const int2 b2 = b4.lo | b4.hi;
+    uint used = 0u;
+    for (int i = 0; i < RK_WIDTH; ++i)
+        if (n->count[i] != 0u || n->index[i] != 0u) used |= 1u << i;
+    return (uint)(b2.x | b2.y) & used;
+}
+#endif
+
+/* Sets p's frustum over the lanes `group` (one octant). */
+RK_INLINE void rk_packet_set_frustum(rk_packet* p, const float lorg[3][RK_PACKET], const float linv[3][RK_PACKET],
+                                     const float* ltmin, const uint group) {
+#ifdef RK_QNODES
+    p->frustum = 0;
+#else
+    int ok = 1;
+    float tmin = INFINITY;
+    for (uint lm = group; lm; lm &= lm - 1u) {
+        const float t = ltmin[rk_lowest_bit(lm)];
+        tmin = t < tmin ? t : tmin;  /* a NaN tmin: that lane enters nothing */
+    }
+    p->ftmin = tmin;
+    for (int a = 0; a < 3; ++a) {
+        float olo = INFINITY, ohi = -INFINITY, ilo = INFINITY, ihi = -INFINITY;
+        for (uint lm = group; lm; lm &= lm - 1u) {
+            const int l = rk_lowest_bit(lm);
+            const float o = lorg[a][l], v = linv[a][l];
+            if (!isfinite(o) || !isfinite(v) || v == 0.0f) ok = 0;
+            olo = o < olo ? o : olo;
+            ohi = o > ohi ? o : ohi;
+            ilo = v < ilo ? v : ilo;
+            ihi = v > ihi ? v : ihi;
+        }
+        const int neg = p->wnear[a] > p->wfar[a];  /* the octant's sign on this axis */
+        p->fo_near[a] = neg ? olo : ohi;
+        p->fo_far[a] = neg ? ohi : olo;
+        p->fi_lo[a] = ilo;
+        p->fi_hi[a] = ihi;
+    }
+    p->frustum = ok;
 #endif
 }
 
@@ -146,6 +219,43 @@ RK_INLINE uint rk_packet_walk(const rk_packet* pk, rk_wt_ray* w, uint* ready, __
                 lanes &= ~finished;
                 if (!lanes) return finished;
             }
+#ifndef RK_QNODES
+        } else if (ccnt == 0u && pk->frustum) {
+            /* the frustum picks the slots some lane may enter, nearest first by its bound; the
+               first is tested lane by lane now, the rest when popped */
+            __global const rk_onode* n = nodes + cidx;
+            float tn[RK_WIDTH], key[RK_WIDTH];
+            int ent[RK_WIDTH];
+            int k = 0;
+            for (uint cand = rk_packet_frustum(pk, n, tn); cand; cand &= cand - 1u) {
+                const int i = rk_lowest_bit(cand);
+                int j = k++;
+                while (j > 0 && key[j - 1] > tn[i]) {
+                    key[j] = key[j - 1];
+                    ent[j] = ent[j - 1];
+                    --j;
+                }
+                key[j] = tn[i];
+                ent[j] = i;
+            }
+            if (k > 0) {
+                if (sp + k - 1 > RK_WSTACK) return finished;  /* deeper than raykit's builders make */
+                for (int j = k - 1; j >= 1; --j) {
+                    st_index[sp] = n->index[ent[j]];
+                    st_count[sp] = n->count[ent[j]];
+                    st_parent[sp] = cidx;
+                    st_slot_mask[sp] = (uint)ent[j] << 24 | cmask;
+                    ++sp;
+                }
+                const uint m = rk_packet_child(pk, tm, n, ent[0], cmask, 0);
+                if (m) {
+                    cidx = n->index[ent[0]];
+                    ccnt = n->count[ent[0]];
+                    cmask = m;
+                    continue;
+                }
+            }
+#endif
         } else if (ccnt == 0u) {
             __global const rk_onode* n = nodes + cidx;
             const int lead = rk_lowest_bit(cmask);
@@ -253,6 +363,7 @@ RK_INLINE uint rk_packet_object(const rk_scene* sc, const rk_object* ob, const u
             p.wnear[a] = (2 * a + neg) * RK_WIDTH;
             p.wfar[a] = (2 * a + 1 - neg) * RK_WIDTH;
         }
+        rk_packet_set_frustum(&p, lorg, linv, ltmin, group);
         finished |= rk_packet_walk(&p, w, &ready, nodes, blocks, ob, object, inst, o, group, any, best, tm, f);
         lanes &= ~group;
     }
