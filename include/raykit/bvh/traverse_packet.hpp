@@ -308,58 +308,15 @@ unsigned traverse_packet(const WideBvhT<W>& bvh, const RayPacket<N>& p, unsigned
                 active &= ~done;
                 if (!active) return finished;
             }
-        } else if (cur_count == 0 && p.frustum) {
-            // the frustum picks the children some lane may enter, nearest first by its bound;
-            // the first is tested lane by lane now, the rest when popped
-            const WideNodeT<W>& n = nodes[cur_index];
-            alignas(64) float tn[std::size_t(W)];
-            unsigned cand = detail::frustum_enter(p, n, tn);
-            float key[std::size_t(W)];
-            int entered[std::size_t(W)];
-            int k = 0;
-            for (; cand; cand &= cand - 1) {
-                const int i = std::countr_zero(cand);
-                int j = k++;
-                while (j > 0 && key[j - 1] > tn[i]) {
-                    key[j] = key[j - 1];
-                    entered[j] = entered[j - 1];
-                    --j;
-                }
-                key[j] = tn[i];
-                entered[j] = i;
-            }
-            if (k > 0) {
-                if (sp + k - 1 > kStack)
-                    throw std::length_error("raykit::traverse_packet: wide tree deeper than RAYKIT_BVH_MAX_DEPTH");
-                for (int j = k - 1; j >= 1; --j) {
-                    const int i = entered[j];
-                    stack[sp++] = {n.index[i], n.count[i], cur_index, std::uint32_t(i) << 24 | cur_mask};
-                }
-                const unsigned m = detail::packet_enter_child(p, n, entered[0], cur_mask, nullptr);
-                if (m) {
-                    cur_index = n.index[entered[0]];
-                    cur_count = n.count[entered[0]];
-                    cur_mask = m;
-                    continue;
-                }
-            }
         } else if (cur_count == 0) {
             const WideNodeT<W>& n = nodes[cur_index];
-            const int lead = std::countr_zero(cur_mask);  // the ray whose distances order the children
             float key[std::size_t(W)];
             unsigned mask[std::size_t(W)];
             int entered[std::size_t(W)];
             int k = 0;
-            for (int i = 0; i < W; ++i) {
-                // unused slots hold an empty box no lane enters: testing them is cheaper than
-                // branching on unused(i), whose pattern varies node to node (render_cpu, thesis
-                // camera rays, 1 thread: trace 15.1-15.3 ms with the branch, 12.5-12.7 without)
-                alignas(64) float tn[std::size_t(N)];
-                const unsigned m = detail::packet_enter_child(p, n, i, cur_mask, tn);
-                if (!m) continue;
-                // insertion by the lead ray's entry distance (stable: ties keep slot order)
+            // children to enter, nearest first by `t` (stable: ties keep slot order)
+            const auto insert = [&](int i, float t, unsigned m) RAYKIT_LAMBDA_INLINE {
                 int j = k++;
-                const float t = tn[lead];
                 while (j > 0 && key[j - 1] > t) {
                     key[j] = key[j - 1];
                     mask[j] = mask[j - 1];
@@ -369,6 +326,25 @@ unsigned traverse_packet(const WideBvhT<W>& bvh, const RayPacket<N>& p, unsigned
                 key[j] = t;
                 mask[j] = m;
                 entered[j] = i;
+            };
+            if (p.frustum) {
+                // the children some lane may enter, by the frustum's entry bound, with the node's
+                // lanes: each is tested lane by lane when taken (the first, below) or popped
+                alignas(64) float tn[std::size_t(W)];
+                for (unsigned cand = detail::frustum_enter(p, n, tn); cand; cand &= cand - 1) {
+                    const int i = std::countr_zero(cand);
+                    insert(i, tn[i], cur_mask);
+                }
+            } else {
+                const int lead = std::countr_zero(cur_mask);  // the ray whose distances order the children
+                for (int i = 0; i < W; ++i) {
+                    // unused slots hold an empty box no lane enters: testing them is cheaper than
+                    // branching on unused(i), whose pattern varies node to node (render_cpu, thesis
+                    // camera rays, 1 thread: trace 15.1-15.3 ms with the branch, 12.5-12.7 without)
+                    alignas(64) float tn[std::size_t(N)];
+                    const unsigned m = detail::packet_enter_child(p, n, i, cur_mask, tn);
+                    if (m) insert(i, tn[lead], m);
+                }
             }
             if (k > 0) {
                 if (sp + k - 1 > kStack)
@@ -377,10 +353,13 @@ unsigned traverse_packet(const WideBvhT<W>& bvh, const RayPacket<N>& p, unsigned
                     const int i = entered[j];
                     stack[sp++] = {n.index[i], n.count[i], cur_index, std::uint32_t(i) << 24 | mask[j]};
                 }
-                cur_index = n.index[entered[0]];
-                cur_count = n.count[entered[0]];
-                cur_mask = mask[0];
-                continue;
+                const unsigned m = p.frustum ? detail::packet_enter_child(p, n, entered[0], mask[0], nullptr) : mask[0];
+                if (m) {
+                    cur_index = n.index[entered[0]];
+                    cur_count = n.count[entered[0]];
+                    cur_mask = m;
+                    continue;
+                }
             }
         } else {
             const unsigned done = leaf(cur_index, cur_count, cur_mask);

@@ -194,6 +194,20 @@ RK_INLINE void rk_lane_ready(rk_wt_ray* w, uint* ready, const rk_ray* o, const i
     *ready |= 1u << l;
 }
 
+/* Slot i with key t and lanes m into the k entries so far, nearest first (ties in slot order). */
+RK_INLINE void rk_enter_insert(float* key, uint* msk, int* ent, int* k, const int i, const float t, const uint m) {
+    int j = (*k)++;
+    while (j > 0 && key[j - 1] > t) {
+        key[j] = key[j - 1];
+        msk[j] = msk[j - 1];
+        ent[j] = ent[j - 1];
+        --j;
+    }
+    key[j] = t;
+    msk[j] = m;
+    ent[j] = i;
+}
+
 /* One object's walk for the lanes `lanes` of rays o[] (object space, all in one octant):
    closest hits improve best[] and tm[] in place (as rk_walk's leaf does, instance `inst`); any
    hits return the lanes that found one. */
@@ -219,66 +233,31 @@ RK_INLINE uint rk_packet_walk(const rk_packet* pk, rk_wt_ray* w, uint* ready, __
                 lanes &= ~finished;
                 if (!lanes) return finished;
             }
-#ifndef RK_QNODES
-        } else if (ccnt == 0u && pk->frustum) {
-            /* the frustum picks the slots some lane may enter, nearest first by its bound; the
-               first is tested lane by lane now, the rest when popped */
-            __global const rk_onode* n = nodes + cidx;
-            float tn[RK_WIDTH], key[RK_WIDTH];
-            int ent[RK_WIDTH];
-            int k = 0;
-            for (uint cand = rk_packet_frustum(pk, n, tn); cand; cand &= cand - 1u) {
-                const int i = rk_lowest_bit(cand);
-                int j = k++;
-                while (j > 0 && key[j - 1] > tn[i]) {
-                    key[j] = key[j - 1];
-                    ent[j] = ent[j - 1];
-                    --j;
-                }
-                key[j] = tn[i];
-                ent[j] = i;
-            }
-            if (k > 0) {
-                if (sp + k - 1 > RK_WSTACK) return finished;  /* deeper than raykit's builders make */
-                for (int j = k - 1; j >= 1; --j) {
-                    st_index[sp] = n->index[ent[j]];
-                    st_count[sp] = n->count[ent[j]];
-                    st_parent[sp] = cidx;
-                    st_slot_mask[sp] = (uint)ent[j] << 24 | cmask;
-                    ++sp;
-                }
-                const uint m = rk_packet_child(pk, tm, n, ent[0], cmask, 0);
-                if (m) {
-                    cidx = n->index[ent[0]];
-                    ccnt = n->count[ent[0]];
-                    cmask = m;
-                    continue;
-                }
-            }
-#endif
         } else if (ccnt == 0u) {
             __global const rk_onode* n = nodes + cidx;
-            const int lead = rk_lowest_bit(cmask);
             float key[RK_WIDTH];
             uint msk[RK_WIDTH];
             int ent[RK_WIDTH];
             int k = 0;
-            for (int i = 0; i < RK_WIDTH; ++i) {
-                if (n->count[i] == 0u && n->index[i] == 0u) continue;  /* an unused slot: an empty box */
-                float tn[RK_PACKET];
-                const uint m = rk_packet_child(pk, tm, n, i, cmask, tn);
-                if (!m) continue;
-                int j = k++;
-                const float t = tn[lead];
-                while (j > 0 && key[j - 1] > t) {  /* by the lead lane's entry distance, ties in slot order */
-                    key[j] = key[j - 1];
-                    msk[j] = msk[j - 1];
-                    ent[j] = ent[j - 1];
-                    --j;
+#ifndef RK_QNODES
+            if (pk->frustum) {
+                /* the slots some lane may enter, by the frustum's entry bound, with the node's lanes:
+                   each is tested lane by lane when taken (the first, below) or popped */
+                float tn[RK_WIDTH];
+                for (uint cand = rk_packet_frustum(pk, n, tn); cand; cand &= cand - 1u) {
+                    const int i = rk_lowest_bit(cand);
+                    rk_enter_insert(key, msk, ent, &k, i, tn[i], cmask);
                 }
-                key[j] = t;
-                msk[j] = m;
-                ent[j] = i;
+            } else
+#endif
+            {
+                const int lead = rk_lowest_bit(cmask);  /* the lane whose distances order the slots */
+                for (int i = 0; i < RK_WIDTH; ++i) {
+                    if (n->count[i] == 0u && n->index[i] == 0u) continue;  /* an unused slot: an empty box */
+                    float tn[RK_PACKET];
+                    const uint m = rk_packet_child(pk, tm, n, i, cmask, tn);
+                    if (m) rk_enter_insert(key, msk, ent, &k, i, tn[lead], m);
+                }
             }
             if (k > 0) {
                 if (sp + k - 1 > RK_WSTACK) return finished;  /* deeper than raykit's builders make */
@@ -289,11 +268,13 @@ RK_INLINE uint rk_packet_walk(const rk_packet* pk, rk_wt_ray* w, uint* ready, __
                     st_slot_mask[sp] = (uint)ent[j] << 24 | msk[j];
                     ++sp;
                 }
-                const int e0 = ent[0];
-                cidx = n->index[e0];
-                ccnt = n->count[e0];
-                cmask = msk[0];
-                continue;
+                const uint m = pk->frustum ? rk_packet_child(pk, tm, n, ent[0], msk[0], 0) : msk[0];
+                if (m) {
+                    cidx = n->index[ent[0]];
+                    ccnt = n->count[ent[0]];
+                    cmask = m;
+                    continue;
+                }
             }
         } else {
             for (uint lm = cmask; lm; lm &= lm - 1u) {  /* each entering lane: the single-ray leaf */
