@@ -113,8 +113,10 @@ RK_INLINE uint rk_packet_child(const rk_packet* p, const float* tm, __global con
 
 #ifndef RK_QNODES
 /* The slots of node `n` that some lane of `p` may enter: a superset of rk_packet_child's lanes
-   over all slots (unused slots left out), all 8 in one float8 test (the CPU's frustum_enter,
-   where the argument is). Writes lower bounds of the entry distances to tn_out. */
+   over all slots, all 8 in one float8 test (the CPU's frustum_enter, where the argument is).
+   An unused slot holds an empty box (layout.hpp), whose near distance is +inf and far −inf, so
+   it is never kept, as rk_wslab never enters it. Writes lower bounds of the entry distances to
+   tn_out. */
 RK_INLINE uint rk_packet_frustum(const rk_packet* p, __global const rk_onode* n, float* tn_out) {
     __global const float* f = (__global const float*)n;
     float8 t0 = (float8)(p->ftmin), t1 = (float8)(INFINITY);
@@ -132,10 +134,7 @@ RK_INLINE uint rk_packet_frustum(const rk_packet* p, __global const rk_onode* n,
     const int8 b = islessequal(t0, t1) & (int8)(1, 2, 4, 8, 16, 32, 64, 128);
     const int4 b4 = b.lo | b.hi;
     const int2 b2 = b4.lo | b4.hi;
-    uint used = 0u;
-    for (int i = 0; i < RK_WIDTH; ++i)
-        if (n->count[i] != 0u || n->index[i] != 0u) used |= 1u << i;
-    return (uint)(b2.x | b2.y) & used;
+    return (uint)(b2.x | b2.y);
 }
 #endif
 
