@@ -10,6 +10,7 @@
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "raykit.hpp"
@@ -549,4 +550,32 @@ TEST(Mesh, BoundsCoverTheFiniteTrianglesOnly) {
     EXPECT_EQ(m.vertex_count(), MeshView(m).vertex_count());
     Mesh none;
     EXPECT_TRUE(none.bounds().is_empty());
+}
+
+// max_axis and Watertight::prepare pick axes without branches (random rays mispredicted the
+// branches in a quarter of a ray's setup); their picks must stay those of the rule they replace,
+// with its ties (x before y before z), signed zeros and NaNs (a NaN compares false), since the
+// device kernels and the packet walks make the same picks from the same rule.
+TEST(Watertight, AxisPicksFollowTheRuleOnTiesZerosAndNaNs) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float values[] = {-2.0f, -1.0f, -0.0f, 0.0f, 1.0f, 2.0f, nan, kInf};
+    int checked = 0;
+    for (float x : values)
+        for (float y : values)
+            for (float z : values) {
+                const vec3 v(x, y, z);
+                const int rule = v.x >= v.y ? (v.x >= v.z ? 0 : 2) : (v.y >= v.z ? 1 : 2);
+                ASSERT_EQ(max_axis(v), rule) << x << " " << y << " " << z;
+                const Ray r = make_ray(vec3(0.5f), v);
+                const Watertight::RayData d = Watertight::prepare(r);
+                const vec3 ad = glm::abs(v);
+                const int kz = ad.x >= ad.y ? (ad.x >= ad.z ? 0 : 2) : (ad.y >= ad.z ? 1 : 2);
+                int kx = kz == 2 ? 0 : kz + 1, ky = kx == 2 ? 0 : kx + 1;
+                if (v[kz] < 0.0f) std::swap(kx, ky);
+                ASSERT_EQ(d.kz, kz) << x << " " << y << " " << z;
+                ASSERT_EQ(d.kx, kx) << x << " " << y << " " << z;
+                ASSERT_EQ(d.ky, ky) << x << " " << y << " " << z;
+                ++checked;
+            }
+    EXPECT_EQ(checked, 512);
 }

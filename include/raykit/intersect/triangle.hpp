@@ -86,10 +86,13 @@ struct Watertight {
         d.org = r.org;
         const vec3 ad = glm::abs(r.dir);
         d.kz = max_axis(ad);
-        d.kx = d.kz == 2 ? 0 : d.kz + 1;
-        d.ky = d.kx == 2 ? 0 : d.kx + 1;
+        d.kx = d.kz + 1 - 3 * int(d.kz == 2);
+        d.ky = d.kx + 1 - 3 * int(d.kx == 2);
         const float* dir = &r.dir.x;
-        if (dir[d.kz] < 0.0f) std::swap(d.kx, d.ky);
+        // swap kx, ky when dir[kz] < 0, without a branch (random rays take it half the time)
+        const int swap = (d.kx ^ d.ky) & -int(dir[d.kz] < 0.0f);
+        d.kx ^= swap;
+        d.ky ^= swap;
         d.sx = dir[d.kx] / dir[d.kz];
         d.sy = dir[d.ky] / dir[d.kz];
         d.sz = 1.0f / dir[d.kz];

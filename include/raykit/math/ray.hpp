@@ -26,7 +26,7 @@ struct RayInv {
     int octant[3]{};  // 1 when the component's sign bit is set (-0 counts as negative)
 
     RayInv() = default;
-    explicit RayInv(const vec3& d) noexcept {
+    RAYKIT_INLINE explicit RayInv(const vec3& d) noexcept {
         for (int a = 0; a < 3; ++a) {
             inv[a] = 1.0f / d[a];
             octant[a] = std::signbit(d[a]) ? 1 : 0;
