@@ -14,6 +14,14 @@
 // power of two (at most 1/8 wasted), a freed block waits for the next request of
 // its class, and at most 64 MiB wait (the oldest go back to the system first).
 // trim() gives them all back. Smaller requests go straight to operator new.
+//
+// Blocks of 2 MiB and more are aligned to 2 MiB and, on Linux, advised as huge pages
+// (madvise MADV_HUGEPAGE; where transparent huge pages are "madvise", as on this
+// project's Debian 12 VMs, nothing else gets them). A random ray's walk touches a few
+// nodes and blocks scattered over the whole tree: on the 1M-triangle torus (16 MB of
+// nodes, 41 MB of blocks) 4 KiB pages made most of those touches TLB misses, and huge
+// pages took random rays 9-14 % faster (closest 148-151 -> 134-138 ms, any 148-159 ->
+// 125-136, one thread). Embree uses huge pages on Linux by default.
 #pragma once
 
 #include <bit>
@@ -21,6 +29,10 @@
 #include <mutex>
 #include <new>
 #include <vector>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #if defined(__SANITIZE_ADDRESS__)
 #define RAYKIT_BLOCK_CACHE_ASAN 1
@@ -42,6 +54,7 @@ public:
     static constexpr std::size_t kMinBytes = std::size_t(256) << 10;  ///< smaller requests are not cached
     static constexpr std::size_t kMaxBytes = std::size_t(64) << 20;   ///< most bytes kept waiting
     static constexpr std::align_val_t kAlign{64};
+    static constexpr std::size_t kHugeBytes = std::size_t(2) << 20;  ///< blocks this large sit on huge pages
 
     /// The one cache (never destroyed: arrays in static objects may free into it at exit).
     static BlockCache& get() {
@@ -70,22 +83,22 @@ public:
                     return p;
                 }
         }
-        return ::operator new(size, kAlign);
+        return fresh(size);
     }
     void deallocate(void* p, std::size_t bytes) noexcept {
         const std::size_t size = rounded(bytes);
-        if (size < kMinBytes || size > kMaxBytes) return ::operator delete(p, kAlign);
+        if (size < kMinBytes || size > kMaxBytes) return release(p, size);
         const std::lock_guard lock(m_);
         while (held_ + size > kMaxBytes) {  // the oldest go first
             poison(free_.front().p, free_.front().size, false);
-            ::operator delete(free_.front().p, kAlign);
+            release(free_.front().p, free_.front().size);
             held_ -= free_.front().size;
             free_.erase(free_.begin());
         }
         try {
             free_.push_back({p, size});
         } catch (...) {
-            return ::operator delete(p, kAlign);
+            return release(p, size);
         }
         poison(p, size, true);
         held_ += size;
@@ -95,7 +108,7 @@ public:
         const std::lock_guard lock(m_);
         for (const Block& b : free_) {
             poison(b.p, b.size, false);
-            ::operator delete(b.p, kAlign);
+            release(b.p, b.size);
         }
         free_.clear();
         held_ = 0;
@@ -108,6 +121,19 @@ public:
 
 private:
     BlockCache() = default;
+    /// The alignment a block of `size` (a size class) is allocated and freed with.
+    static constexpr std::align_val_t alignment(std::size_t size) noexcept {
+        return size >= kHugeBytes ? std::align_val_t{kHugeBytes} : kAlign;
+    }
+    /// New memory for a block of `size`, advised as huge pages before its first touch.
+    static void* fresh(std::size_t size) {
+        void* p = ::operator new(size, alignment(size));
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+        if (size >= kHugeBytes) (void)::madvise(p, size, MADV_HUGEPAGE);  // advice: failure changes nothing
+#endif
+        return p;
+    }
+    static void release(void* p, std::size_t size) noexcept { ::operator delete(p, alignment(size)); }
     /// Under AddressSanitizer a waiting block is poisoned, so a use after free is still caught.
     static void poison(void* p, std::size_t size, bool on) noexcept {
 #ifdef RAYKIT_BLOCK_CACHE_ASAN
