@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <cstring>
 #include <functional>
 #include <limits>
@@ -840,20 +839,10 @@ TEST(Builders, BlockCacheReusesFreedBlocksAndKeepsAtMost64MiB) {
     // a block of 2 MiB or more starts on a 2 MiB boundary and, on Linux with transparent huge
     // pages, its mapping carries the huge-page advice (smaps VmFlags "hg")
     ASSERT_EQ(reinterpret_cast<std::uintptr_t>(other) % BlockCache::kHugeBytes, 0u);
-#if defined(__linux__) && !defined(RAYKIT_BLOCK_CACHE_ASAN)
-    if (std::ifstream("/sys/kernel/mm/transparent_hugepage/enabled")) {
-        std::ifstream smaps("/proc/self/smaps");
-        std::string line, flags;
-        bool inside = false;
-        const auto at = reinterpret_cast<std::uintptr_t>(other);
-        while (std::getline(smaps, line)) {
-            unsigned long lo = 0, hi = 0;
-            if (std::sscanf(line.c_str(), "%lx-%lx ", &lo, &hi) == 2 && line.find(':') > line.find(' ')) inside = lo <= at && at < hi;
-            else if (inside && line.rfind("VmFlags:", 0) == 0) flags = line;
-        }
+    if (test::huge_page_advice_visible()) {
+        const std::string flags = test::vm_flags_of(other);
         EXPECT_NE(flags.find(" hg"), std::string::npos) << "the 4 MiB block's mapping: " << flags;
     }
-#endif
     cache.deallocate(p, mib + 1);
     cache.deallocate(other, 4 * mib);
     // at most 64 MiB wait, the oldest leaving first; trim gives them all back

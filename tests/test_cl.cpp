@@ -244,6 +244,29 @@ TEST(ClBuffer, HostStageHoldsReadsAndGrows) {
     EXPECT_EQ(stage.get(dev, 1000).data(), b.data());
 }
 
+// A CPU device's large buffer is advised as huge pages before its first write (buffer.hpp):
+// the data survive the map and unmap around the advice, and the buffer's memory (mapped again
+// to find it) lies in a mapping with the advice.
+TEST(ClBuffer, LargeBuffersOfACpuDeviceKeepTheirDataOnHugePageAdvice) {
+    RAYKIT_REQUIRE_DEVICE(dev);
+    std::vector<float> src(std::size_t(3) << 20);  // 12 MiB
+    for (std::size_t i = 0; i < src.size(); ++i) src[i] = float(i % 100003) * 0.25f - 3.0f;
+    rcl::Buffer<float> buf(dev, src);
+    const std::vector<float> back = buf.read(dev);
+    ASSERT_EQ(back.size(), src.size());
+    EXPECT_TRUE(std::equal(back.begin(), back.end(), src.begin()));
+    if (!dev.info().is_cpu() || !test::huge_page_advice_visible()) return;
+    cl_int err = CL_SUCCESS;
+    void* p = dev.queue().enqueueMapBuffer(buf.handle(), CL_TRUE, CL_MAP_READ, 0, buf.bytes(), nullptr, nullptr, &err);
+    ASSERT_EQ(err, CL_SUCCESS);
+    const void* middle = static_cast<const char*>(p) + buf.bytes() / 2;
+    const std::string flags = test::vm_flags_of(middle);
+    EXPECT_EQ(static_cast<const float*>(middle)[0], src[src.size() / 2]);
+    dev.queue().enqueueUnmapMemObject(buf.handle(), p);
+    dev.queue().finish();
+    EXPECT_NE(flags.find(" hg"), std::string::npos) << "the buffer's mapping: " << flags;
+}
+
 TEST(ClProgram, BuildsOnceAndCaches) {
     RAYKIT_REQUIRE_DEVICE(dev);
     // a program nobody else builds: the first call compiles, the second is cached

@@ -4,6 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <fstream>
+#include <string>
 #include <random>
 #include <vector>
 
@@ -99,6 +102,40 @@ inline std::vector<Ray> packet_test_rays(const Mesh& m, std::size_t n_random, st
         }
     }
     return rays;
+}
+
+/// The "VmFlags:" line of the mapping that holds `p` in /proc/self/smaps ("" where there is
+/// none, or no smaps): huge-page advice shows there as " hg".
+inline std::string vm_flags_of(const void* p) {
+    std::ifstream smaps("/proc/self/smaps");
+    std::string line, flags;
+    bool inside = false;
+    const auto at = reinterpret_cast<std::uintptr_t>(p);
+    while (std::getline(smaps, line)) {
+        unsigned long lo = 0, hi = 0;
+        if (std::sscanf(line.c_str(), "%lx-%lx ", &lo, &hi) == 2 && line.find(':') > line.find(' '))
+            inside = lo <= at && at < hi;
+        else if (inside && line.rfind("VmFlags:", 0) == 0)
+            flags = line;
+    }
+    return flags;
+}
+
+/// True where huge-page advice can show: Linux with transparent huge pages, not under
+/// AddressSanitizer (whose allocator maps large blocks its own way).
+inline bool huge_page_advice_visible() {
+#if defined(__SANITIZE_ADDRESS__)
+    return false;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+    return false;
+#endif
+#endif
+#if defined(__linux__)
+    return bool(std::ifstream("/sys/kernel/mm/transparent_hugepage/enabled"));
+#else
+    return false;
+#endif
 }
 
 }  // namespace raykit::test

@@ -11,12 +11,17 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
 #include <utility>
 #include <vector>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #include "raykit/cl/device.hpp"
 #include "raykit/math/types.hpp"
@@ -51,6 +56,7 @@ public:
             throw Error("clCreateBuffer(" + std::to_string(n * sizeof(T)) + " bytes)", err);
         size_ = count;
         capacity_ = n;
+        advise_huge_pages(dev, n * sizeof(T));
     }
     /// Allocates only when the buffer holds fewer than `count` elements.
     void reserve(Device& dev, std::size_t count, cl_mem_flags flags = CL_MEM_READ_WRITE) {
@@ -85,6 +91,28 @@ public:
     operator const ::cl::Buffer&() const noexcept { return buffer_; }  // NOLINT: pass as a kernel argument
 
 private:
+    /// On a CPU device (PoCL), a new buffer of 4 MiB or more is mapped once, before anything is
+    /// written to it, and the 2 MiB-aligned part of its memory advised as huge pages (the host
+    /// side does the same, util/block_cache.hpp). A CPU device's buffer is host memory that the
+    /// driver allocates with plain 4 KiB pages, and a random ray's walk over the 1M torus's
+    /// 57 MB of nodes and blocks then missed the TLB at most steps: PoCL's random closest rays
+    /// took 126 ms, 0.75x the CPU's 94 ms, and 104 ms (0.90x) with huge pages. Advice only:
+    /// where the mapping fails or is a copy, nothing changes.
+    void advise_huge_pages([[maybe_unused]] Device& dev, [[maybe_unused]] std::size_t bytes) {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+        constexpr std::uintptr_t kHuge = std::uintptr_t(2) << 20;
+        if (bytes < 2 * kHuge || !dev.info().is_cpu()) return;
+        cl_int err = CL_SUCCESS;
+        void* p = dev.queue().enqueueMapBuffer(buffer_, CL_TRUE, CL_MAP_WRITE_INVALIDATE_REGION, 0, bytes, nullptr,
+                                               nullptr, &err);
+        if (err != CL_SUCCESS || p == nullptr) return;
+        const std::uintptr_t a = (reinterpret_cast<std::uintptr_t>(p) + kHuge - 1) & ~(kHuge - 1);
+        const std::uintptr_t e = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHuge - 1);
+        if (e > a) (void)::madvise(reinterpret_cast<void*>(a), e - a, MADV_HUGEPAGE);
+        dev.queue().enqueueUnmapMemObject(buffer_, p);
+#endif
+    }
+
     ::cl::Buffer buffer_;
     std::size_t size_ = 0;
     std::size_t capacity_ = 0;
