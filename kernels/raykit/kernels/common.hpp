@@ -191,14 +191,14 @@ RK_INLINE rk_wt_ray rk_wt_prepare(const float* org, const float* dir) {
     rk_wt_ray d;
     for (int a = 0; a < 3; ++a) d.org[a] = org[a];
     const float ax = fabs(dir[0]), ay = fabs(dir[1]), az = fabs(dir[2]);
-    d.kz = ax >= ay ? (ax >= az ? 0 : 2) : (ay >= az ? 1 : 2);
-    d.kx = d.kz == 2 ? 0 : d.kz + 1;
-    d.ky = d.kx == 2 ? 0 : d.kx + 1;
-    if (dir[d.kz] < 0.0f) {
-        const int t = d.kx;
-        d.kx = d.ky;
-        d.ky = t;
-    }
+    /* raykit::max_axis and Watertight::prepare's picks, by arithmetic: random rays mispredict branches */
+    const int xy = ax >= ay, xz = ax >= az, yz = ay >= az;
+    d.kz = 2 - 2 * (xy & xz) - ((1 - xy) & yz);
+    d.kx = d.kz + 1 - 3 * (d.kz == 2);
+    d.ky = d.kx + 1 - 3 * (d.kx == 2);
+    const int swap = (d.kx ^ d.ky) & -(int)(dir[d.kz] < 0.0f);
+    d.kx ^= swap;
+    d.ky ^= swap;
     d.sx = dir[d.kx] / dir[d.kz];
     d.sy = dir[d.ky] / dir[d.kz];
     d.sz = 1.0f / dir[d.kz];
