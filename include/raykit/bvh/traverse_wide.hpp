@@ -118,9 +118,8 @@ struct WideSlabRay {
     }
 
     /// One box, with slab_test()'s decision (intersect/slab.hpp), from this
-    /// ray's reciprocals (no second division per ray).
-    /// The near and far planes are picked by a bit mask, not a branch: on random rays the
-    /// octant's three branches mispredicted half the time, a quarter of the cost of a ray's setup.
+    /// ray's reciprocals (no second division per ray). The near and far planes are picked by
+    /// a bit mask, not a branch: a random ray's octant is random (see max_axis, math/types.hpp).
     RAYKIT_INLINE bool test_box(const AABB& b, float tmin, float tmax) const noexcept {
         const float* lo = &b.min.x;
         const float* hi = &b.max.x;
