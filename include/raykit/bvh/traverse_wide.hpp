@@ -119,18 +119,14 @@ struct WideSlabRay {
 
     /// One box, with slab_test()'s decision (intersect/slab.hpp), from this
     /// ray's reciprocals (no second division per ray). The near and far planes are picked by
-    /// a bit mask, not a branch: a random ray's octant is random (see max_axis, math/types.hpp).
+    /// the octant's index, not a branch: a random ray's octant is random (see max_axis, math/types.hpp).
     RAYKIT_INLINE bool test_box(const AABB& b, float tmin, float tmax) const noexcept {
-        const float* lo = &b.min.x;
-        const float* hi = &b.max.x;
+        const float* const corner[2] = {&b.min.x, &b.max.x};
         float t0 = tmin, t1 = tmax;
         for (int a = 0; a < 3; ++a) {
-            const std::uint32_t neg = 0u - std::uint32_t(near_row[a] & 1);
-            const std::uint32_t l = std::bit_cast<std::uint32_t>(lo[a]), h = std::bit_cast<std::uint32_t>(hi[a]);
-            const float pn = std::bit_cast<float>((h & neg) | (l & ~neg));
-            const float pf = std::bit_cast<float>((l & neg) | (h & ~neg));
-            t0 = robust_max((pn - org[a]) * inv[a], t0);
-            t1 = robust_min((pf - org[a]) * inv[a], t1);
+            const int neg = near_row[a] & 1;
+            t0 = robust_max((corner[neg][a] - org[a]) * inv[a], t0);
+            t1 = robust_min((corner[1 - neg][a] - org[a]) * inv[a], t1);
         }
         return t0 <= t1 * kSlabExitScale;
     }

@@ -11,7 +11,6 @@
 #pragma once
 
 #include <cstddef>
-#include <cstdint>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -19,12 +18,9 @@
 #include <utility>
 #include <vector>
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
-
 #include "raykit/cl/device.hpp"
 #include "raykit/math/types.hpp"
+#include "raykit/util/block_cache.hpp"
 
 namespace raykit::cl {
 
@@ -100,15 +96,12 @@ private:
     /// where the mapping fails or is a copy, nothing changes.
     void advise_huge_pages([[maybe_unused]] Device& dev, [[maybe_unused]] std::size_t bytes) {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-        constexpr std::uintptr_t kHuge = std::uintptr_t(2) << 20;
-        if (bytes < 2 * kHuge || !dev.info().is_cpu()) return;
+        if (bytes < 2 * ::raykit::detail::kHugePageBytes || !dev.info().is_cpu()) return;
         cl_int err = CL_SUCCESS;
         void* p = dev.queue().enqueueMapBuffer(buffer_, CL_TRUE, CL_MAP_WRITE_INVALIDATE_REGION, 0, bytes, nullptr,
                                                nullptr, &err);
         if (err != CL_SUCCESS || p == nullptr) return;
-        const std::uintptr_t a = (reinterpret_cast<std::uintptr_t>(p) + kHuge - 1) & ~(kHuge - 1);
-        const std::uintptr_t e = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHuge - 1);
-        if (e > a) (void)::madvise(reinterpret_cast<void*>(a), e - a, MADV_HUGEPAGE);
+        ::raykit::detail::advise_huge_pages(p, bytes);
         dev.queue().enqueueUnmapMemObject(buffer_, p);
 #endif
     }

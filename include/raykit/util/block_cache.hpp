@@ -26,6 +26,7 @@
 
 #include <bit>
 #include <cstddef>
+#include <cstdint>
 #include <mutex>
 #include <new>
 #include <vector>
@@ -48,13 +49,29 @@
 namespace raykit {
 namespace detail {
 
+/// Bytes of a huge page: blocks this large and larger go on huge pages.
+inline constexpr std::size_t kHugePageBytes = std::size_t(2) << 20;
+
+/// Advises the whole huge pages inside [p, p + bytes) as huge pages (Linux MADV_HUGEPAGE) before
+/// their first touch. Advice only: where it fails, or on other systems, nothing changes. The
+/// block cache's large blocks and the device buffers of a CPU device (cl/buffer.hpp) use it.
+inline void advise_huge_pages(void* p, std::size_t bytes) noexcept {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    const std::uintptr_t a = (reinterpret_cast<std::uintptr_t>(p) + kHugePageBytes - 1) & ~(kHugePageBytes - 1);
+    const std::uintptr_t e = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHugePageBytes - 1);
+    if (e > a) (void)::madvise(reinterpret_cast<void*>(a), e - a, MADV_HUGEPAGE);
+#else
+    (void)p, (void)bytes;
+#endif
+}
+
 /// Process-wide cache of large 64-byte-aligned blocks (see the header comment).
 class BlockCache {
 public:
     static constexpr std::size_t kMinBytes = std::size_t(256) << 10;  ///< smaller requests are not cached
     static constexpr std::size_t kMaxBytes = std::size_t(64) << 20;   ///< most bytes kept waiting
     static constexpr std::align_val_t kAlign{64};
-    static constexpr std::size_t kHugeBytes = std::size_t(2) << 20;  ///< blocks this large sit on huge pages
+    static constexpr std::size_t kHugeBytes = kHugePageBytes;  ///< blocks this large sit on huge pages
 
     /// The one cache (never destroyed: arrays in static objects may free into it at exit).
     static BlockCache& get() {
@@ -128,9 +145,7 @@ private:
     /// New memory for a block of `size`, advised as huge pages before its first touch.
     static void* fresh(std::size_t size) {
         void* p = ::operator new(size, alignment(size));
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-        if (size >= kHugeBytes) (void)::madvise(p, size, MADV_HUGEPAGE);  // advice: failure changes nothing
-#endif
+        if (size >= kHugeBytes) advise_huge_pages(p, size);
         return p;
     }
     static void release(void* p, std::size_t size) noexcept { ::operator delete(p, alignment(size)); }
