@@ -192,6 +192,9 @@ RK_INLINE bool rk_leaf(const rk_wt_ray* w, __global const rk_block* restrict blo
         __global const rk_block* b = blocks + k;
         float4 t4, u4, v4;
         uint m = rk_wt4_intersect(w, b, tmin, *tmax, &t4, &u4, &v4);
+#ifndef RK_LEAF_FILTER
+        if (any && m) return true;  /* every lane of m lies in [tmin, tmax], and any hit keeps tmax */
+#endif
         while (m) {  /* lanes in order, as a scalar loop over the leaf's triangles */
             const int i = rk_lowest_bit(m);
             m &= m - 1u;
@@ -255,8 +258,7 @@ RK_INLINE int rk_object_walk(const rk_slab_ray* s, const rk_wt_ray* w, __global 
                         mask &= mask - 1u;
                         ws_index[wsp] = n->index[i];
                         ws_count[wsp] = n->count[i];
-                        ws_t[wsp] = td[i];
-                        ++wsp;
+                        ++wsp;  /* no entry distance: any hit keeps tmax, so every entry stays in front */
                     }
                     continue;
                 }
@@ -311,7 +313,7 @@ RK_INLINE int rk_object_walk(const rk_slab_ray* s, const rk_wt_ray* w, __global 
         bool next = false;
         while (wsp > 0) {
             --wsp;
-            if (ws_t[wsp] <= *tmax * RK_SLAB_EXIT_SCALE) {
+            if (any || ws_t[wsp] <= *tmax * RK_SLAB_EXIT_SCALE) {
                 cidx = ws_index[wsp];
                 ccnt = ws_count[wsp];
                 next = true;
