@@ -221,20 +221,32 @@ RK_INLINE bool rk_leaf(const rk_wt_ray* w, __global const rk_block* restrict blo
     return found;
 }
 
+/* Lane l's triangle-test set-up (w[l] from the ray o[l]), made when the lane first reaches a
+   leaf (bit l of *ready): a ray that misses the root box or reaches no leaf never pays for it,
+   nor does a packet's lane that reaches none (most camera rays of a packet; the CPU's
+   LazyRayData and packet_prepare do the same). A single ray is lane 0 of its own. */
+RK_INLINE void rk_lane_ready(rk_wt_ray* w, uint* ready, const rk_ray* o, const int l) {
+    if ((*ready >> l) & 1u) return;
+    w[l] = rk_wt_prepare(o[l].org, o[l].dir);
+    *ready |= 1u << l;
+}
+
 /* rk_object_walk's result bits: a hit was found (closest: *best improved), the walk stopped
    on a tree deeper than its stack. */
 #define RK_WALK_HIT 1
 #define RK_WALK_ABORT 2
 
-/* One object's walk (raykit::traverse_from over a WideBvhT) for ray s / w from entry (start,
+/* One object's walk (raykit::traverse_from over a WideBvhT) for ray s (lane l of o[], its
+   triangle-test set-up w[l] made at its first leaf, rk_lane_ready) from entry (start,
    start_count) — node 0, which holds the root box alone, for a whole walk; a wide node whose
    box the ray enters, for a packet walk that has thinned out (trace_packet.hpp). Closest hits
    improve *best and *tmax in place; any hit returns at the first. Entered children nearest
    first (ties in slot order), the others pushed far to near; any hit pushes them in slot order. */
-RK_INLINE int rk_object_walk(const rk_slab_ray* s, const rk_wt_ray* w, __global const rk_onode* restrict nodes,
-                             __global const rk_block* restrict blocks, const uint start, const uint start_count,
-                             const float tmin, float* tmax, const int any, const uint inst, const uint object,
-                             const rk_object* ob, rk_hit* best, const rk_filter* f, uint* steps) {
+RK_INLINE int rk_object_walk(const rk_slab_ray* s, rk_wt_ray* w, uint* ready, const rk_ray* o, const int l,
+                             __global const rk_onode* restrict nodes, __global const rk_block* restrict blocks,
+                             const uint start, const uint start_count, const float tmin, float* tmax, const int any,
+                             const uint inst, const uint object, const rk_object* ob, rk_hit* best,
+                             const rk_filter* f, uint* steps) {
     uint ws_index[RK_WSTACK], ws_count[RK_WSTACK];  /* the object's entries */
     float ws_t[RK_WSTACK];
     int found = 0;
@@ -304,7 +316,8 @@ RK_INLINE int rk_object_walk(const rk_slab_ray* s, const rk_wt_ray* w, __global 
             }
         } else {
             if (steps) ++*steps;
-            if (rk_leaf(w, blocks, cidx, ccnt, tmin, tmax, any, inst, object, ob, best, f)) {
+            rk_lane_ready(w, ready, o, l);
+            if (rk_leaf(w + l, blocks, cidx, ccnt, tmin, tmax, any, inst, object, ob, best, f)) {
                 if (any) return RK_WALK_HIT;
                 found = RK_WALK_HIT;
             }
@@ -362,8 +375,10 @@ RK_INLINE bool rk_walk(const rk_scene* sc, const rk_ray* r, const int any, rk_hi
             __global const rk_onode* restrict nodes = sc->nodes + ob.node_offset;
             __global const rk_block* restrict blocks = sc->blocks + ob.block_offset;
             const rk_slab_ray s = mapped ? rk_slab_prepare(o.org, o.dir, o.tmin) : top_s;
-            const rk_wt_ray w = rk_wt_prepare(o.org, o.dir);
-            const int res = rk_object_walk(&s, &w, nodes, blocks, 0u, 0u, r->tmin, &tmax, any, inst, object, &ob, best, f, steps);
+            rk_wt_ray w;
+            uint ready = 0u;
+            const int res = rk_object_walk(&s, &w, &ready, &o, 0, nodes, blocks, 0u, 0u, r->tmin, &tmax, any, inst,
+                                           object, &ob, best, f, steps);
             if (res & RK_WALK_HIT) {
                 if (any) return true;
                 found = true;

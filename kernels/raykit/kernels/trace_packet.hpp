@@ -41,7 +41,7 @@
 //
 // Expects RK_PACKET == 16 and the parts before it: kernels/raykit/kernels/common.hpp
 // (rk_wt_prepare, rk_slab_prepare, RK_SLAB_EXIT_SCALE) and trace.hpp (rk_scene, rk_walk,
-// rk_object_walk, rk_leaf, rk_object_ray, rk_hit, rk_lowest_bit, RK_WSTACK).
+// rk_object_walk, rk_leaf, rk_lane_ready, rk_object_ray, rk_hit, rk_lowest_bit, RK_WSTACK).
 #pragma once
 
 namespace raykit::kernels {
@@ -185,14 +185,6 @@ RK_INLINE bool rk_one_octant(const rk_ray* rays, const uint n) {
     return true;
 }
 
-/* Lane l's triangle-test set-up, made when the lane first reaches a leaf or walks alone (most
-   camera rays of a packet reach no leaf; the CPU's packet_prepare does the same). */
-RK_INLINE void rk_lane_ready(rk_wt_ray* w, uint* ready, const rk_ray* o, const int l) {
-    if ((*ready >> l) & 1u) return;
-    w[l] = rk_wt_prepare(o[l].org, o[l].dir);
-    *ready |= 1u << l;
-}
-
 /* Slot i with key t and lanes m into the k entries so far, nearest first (ties in slot order). */
 RK_INLINE void rk_enter_insert(float* key, uint* msk, int* ent, int* k, const int i, const float t, const uint m) {
     int j = (*k)++;
@@ -222,10 +214,9 @@ RK_INLINE uint rk_packet_walk(const rk_packet* pk, rk_wt_ray* w, uint* ready, __
         if (ccnt == 0u && popcount(cmask) <= RK_PACKET_SWITCH) {
             for (uint lm = cmask; lm; lm &= lm - 1u) {  /* each lane alone below this node */
                 const int l = rk_lowest_bit(lm);
-                rk_lane_ready(w, ready, o, l);
                 const rk_slab_ray s = rk_slab_prepare(o[l].org, o[l].dir, o[l].tmin);
-                if ((rk_object_walk(&s, w + l, nodes, blocks, cidx, 0u, o[l].tmin, tm + l, any, inst, object, ob,
-                                    best + l, f, 0) & RK_WALK_HIT) && any)
+                if ((rk_object_walk(&s, w, ready, o, l, nodes, blocks, cidx, 0u, o[l].tmin, tm + l, any, inst, object,
+                                    ob, best + l, f, 0) & RK_WALK_HIT) && any)
                     finished |= 1u << l;
             }
             if (any) {
