@@ -224,7 +224,7 @@ RK_INLINE bool rk_leaf(const rk_wt_ray* w, __global const rk_block* restrict blo
 /* Lane l's triangle-test set-up (w[l] from the ray o[l]), made when the lane first reaches a
    leaf (bit l of *ready): a ray that misses the root box or reaches no leaf never pays for it,
    nor does a packet's lane that reaches none (most camera rays of a packet; the CPU's
-   LazyRayData and packet_prepare do the same). A single ray is lane 0 of its own. */
+   prepare_lanes, scene/trace_level.inc, does the same). A single ray is lane 0 of its own. */
 RK_INLINE void rk_lane_ready(rk_wt_ray* w, uint* ready, const rk_ray* o, const int l) {
     if ((*ready >> l) & 1u) return;
     w[l] = rk_wt_prepare(o[l].org, o[l].dir);
