@@ -148,12 +148,23 @@ struct WideSlabRay {
     }
 };
 
+/// The walk's default for the leaves it pushes: nothing to fetch ahead (see traverse_from).
+struct NoLeafPrefetch {
+    RAYKIT_INLINE void operator()(std::uint32_t, std::uint32_t) const noexcept {}
+};
+
 /// The walk below the entry (index, count) of a non-empty tree — a wide node (count 0) or a
 /// leaf's slots — whose box the ray `wr` enters. traverse() starts it at the root; a packet walk
 /// starts it at the node where its packet has thinned out (bvh/traverse_packet.hpp).
-template <class Mode = ClosestHit, int W, class LeafFn, class Stats = std::nullptr_t>
+/// An entry pushed on the stack is asked for from memory at once: a wide node's four cache lines,
+/// or, through `prefetch_leaf(index, count)`, what the leaf store reads first. A random ray's
+/// node step was about 57 cycles, half of them cache misses and mispredicted branches; fetching
+/// ahead made random rays 2-6 % faster (nodes) and another 1-2 % (leaves) (BlockBvh8, one thread).
+template <class Mode = ClosestHit, int W, class LeafFn, class Stats = std::nullptr_t,
+          class LeafPrefetch = NoLeafPrefetch>
 RAYKIT_INLINE bool traverse_from(const WideBvhT<W>& bvh, const WideSlabRay& wr, const Ray& ray, float& tmax,
-                                 std::uint32_t index, std::uint32_t count, LeafFn&& leaf, Stats stats = nullptr) {
+                                 std::uint32_t index, std::uint32_t count, LeafFn&& leaf, Stats stats = nullptr,
+                                 const LeafPrefetch& prefetch_leaf = {}) {
     const WideNodeT<W>* RAYKIT_RESTRICT nodes = bvh.nodes.data();
     struct Entry {
         std::uint32_t index, count;  // count 0: a wide node; else a leaf's prim_ids range
@@ -163,6 +174,15 @@ RAYKIT_INLINE bool traverse_from(const WideBvhT<W>& bvh, const WideSlabRay& wr, 
     Entry stack[std::size_t(kStack)];
     int sp = 0;
     Entry cur{index, count, 0.0f};
+    const auto push = [&](const Entry& e) RAYKIT_LAMBDA_INLINE {
+        stack[sp++] = e;
+        if (e.count == 0) {
+            const char* q = reinterpret_cast<const char*>(nodes + e.index);
+            for (std::size_t line = 0; line < sizeof(WideNodeT<W>); line += 64) __builtin_prefetch(q + line);
+        } else {
+            prefetch_leaf(e.index, e.count);
+        }
+    };
     bool found = false;
     for (;;) {
         if (cur.count == 0) {
@@ -183,7 +203,7 @@ RAYKIT_INLINE bool traverse_from(const WideBvhT<W>& bvh, const WideSlabRay& wr, 
                     while (mask) {
                         i = std::countr_zero(mask);
                         mask &= mask - 1;
-                        stack[sp++] = {n.index[i], n.count[i], td[i]};
+                        push({n.index[i], n.count[i], td[i]});
                     }
                     continue;
                 }
@@ -203,7 +223,7 @@ RAYKIT_INLINE bool traverse_from(const WideBvhT<W>& bvh, const WideSlabRay& wr, 
                         const int i1 = std::countr_zero(mask & (mask - 1));
                         const bool swap = td[i1] < td[i0];  // ties keep slot order
                         const int a = swap ? i1 : i0, b = swap ? i0 : i1;
-                        stack[sp++] = {n.index[b], n.count[b], td[b]};
+                        push({n.index[b], n.count[b], td[b]});
                         cur = {n.index[a], n.count[a], td[a]};
                         continue;
                     }
@@ -225,7 +245,7 @@ RAYKIT_INLINE bool traverse_from(const WideBvhT<W>& bvh, const WideSlabRay& wr, 
                             }
                             e[j] = x;
                         } while (mask);
-                        for (int j = k - 1; j >= 1; --j) stack[sp++] = e[j];
+                        for (int j = k - 1; j >= 1; --j) push(e[j]);
                         cur = e[0];
                         continue;
                     }
@@ -249,12 +269,14 @@ RAYKIT_INLINE bool traverse_from(const WideBvhT<W>& bvh, const WideSlabRay& wr, 
     }
 }
 
-template <class Mode = ClosestHit, int W, class LeafFn, class Stats = std::nullptr_t>
-RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
+template <class Mode = ClosestHit, int W, class LeafFn, class Stats = std::nullptr_t,
+          class LeafPrefetch = NoLeafPrefetch>
+RAYKIT_INLINE bool traverse(const WideBvhT<W>& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr,
+                            const LeafPrefetch& prefetch_leaf = {}) {
     if (bvh.nodes.empty()) return false;
     const WideSlabRay wr(ray);
     if (!wr.test_box(bvh.bounds, ray.tmin, tmax)) return false;  // the binary traversal's first test
-    return RAYKIT_ISA_NS::traverse_from<Mode>(bvh, wr, ray, tmax, 0, 0, leaf, stats);
+    return RAYKIT_ISA_NS::traverse_from<Mode>(bvh, wr, ray, tmax, 0, 0, leaf, stats, prefetch_leaf);
 }
 
 }  // namespace raykit::RAYKIT_ISA_NS
