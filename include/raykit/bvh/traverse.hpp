@@ -50,8 +50,17 @@ struct TraversalStats {
 #ifdef RAYKIT_ISA_PASS
 namespace raykit::RAYKIT_ISA_NS {
 
-template <class Mode = ClosestHit, class LeafFn, class Stats = std::nullptr_t>
-bool traverse(const Bvh& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr) {
+/// The walks' default for the leaves they reach ahead: nothing to fetch (a leaf store may
+/// offer a prefetch, scene/trace_level.inc's leaf_prefetch).
+struct NoLeafPrefetch {
+    RAYKIT_INLINE void operator()(std::uint32_t, std::uint32_t) const noexcept {}
+};
+
+/// `prefetch_leaf(index, count)` is asked for a child leaf's data when the walk starts fetching
+/// its grandchildren (as traverse_from does for the leaves it pushes, bvh/traverse_wide.hpp).
+template <class Mode = ClosestHit, class LeafFn, class Stats = std::nullptr_t, class LeafPrefetch = NoLeafPrefetch>
+bool traverse(const Bvh& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats stats = nullptr,
+              const LeafPrefetch& prefetch_leaf = {}) {
     if (bvh.nodes.empty()) return false;
     const Node* RAYKIT_RESTRICT nodes = bvh.nodes.data();
     const SlabRay sr(ray);
@@ -81,7 +90,9 @@ bool traverse(const Bvh& bvh, const Ray& ray, float& tmax, LeafFn&& leaf, Stats 
 #if defined(__GNUC__) || defined(__clang__)
             // start fetching the grandchildren while the children are tested
             if (!l.is_leaf()) __builtin_prefetch(&nodes[l.index]);
+            else prefetch_leaf(l.index, l.count);
             if (!r.is_leaf()) __builtin_prefetch(&nodes[r.index]);
+            else prefetch_leaf(r.index, r.count);
 #endif
             float tl, tr;
             const unsigned mask = sr.test_pair(l.box, r.box, ray.tmin, tmax, tl, tr);

@@ -148,11 +148,6 @@ struct WideSlabRay {
     }
 };
 
-/// The walk's default for the leaves it pushes: nothing to fetch ahead (see traverse_from).
-struct NoLeafPrefetch {
-    RAYKIT_INLINE void operator()(std::uint32_t, std::uint32_t) const noexcept {}
-};
-
 /// The walk below the entry (index, count) of a non-empty tree — a wide node (count 0) or a
 /// leaf's slots — whose box the ray `wr` enters. traverse() starts it at the root; a packet walk
 /// starts it at the node where its packet has thinned out (bvh/traverse_packet.hpp).
