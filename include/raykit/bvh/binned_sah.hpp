@@ -108,6 +108,44 @@ struct GrowBox {
 #endif
 };
 
+/// A bin's box as binning grows it. Where the compiler targets AVX it is (min, −max) in one
+/// 8-float vector (lanes 3 and 7 unused), so a record grows it with one minimum where GrowBox
+/// takes a minimum and a maximum; a minimum of negated maxima is the negated maximum, NaN
+/// candidates included (negation is exact), so box() is the GrowBox grown by the same records,
+/// bit for bit. Elsewhere it is a GrowBox. Binning a record into its three bins took 40 % of a
+/// 100k-triangle build's samples (perf); in a loop over the torus's records the 8-float form
+/// bins them 1.5x as fast (8.7-14.0 -> 5.7-9.4 ns a record).
+struct BinBox {
+#if RAYKIT_ISA_X86 && defined(__AVX__)
+    using Corners = __m256;  ///< a record as bins grow by it
+    __m256 v = _mm256_set1_ps(kInf);
+    /// A record's corners, from 4 readable floats at each of mn and mx.
+    static RAYKIT_INLINE void corners(const float* mn, const float* mx, Corners& out) noexcept {
+        out = _mm256_xor_ps(_mm256_loadu2_m128(mx, mn), _mm256_setr_ps(0.0f, 0.0f, 0.0f, 0.0f, -0.0f, -0.0f, -0.0f, -0.0f));
+    }
+    /// MINPS(candidate, current), GrowBox's rule.
+    RAYKIT_INLINE void grow(const Corners& c) noexcept { v = _mm256_min_ps(c, v); }
+    RAYKIT_INLINE void grow(const BinBox& b) noexcept { v = _mm256_min_ps(b.v, v); }
+    RAYKIT_INLINE GrowBox box() const noexcept {
+        GrowBox g;
+        g.lo = _mm256_castps256_ps128(v);
+        g.hi = _mm_xor_ps(_mm256_extractf128_ps(v, 1), _mm_set1_ps(-0.0f));
+        return g;
+    }
+#else
+    struct Corners {
+        const float* mn;
+        const float* mx;
+    };
+    GrowBox g;
+    static RAYKIT_INLINE void corners(const float* mn, const float* mx, Corners& out) noexcept { out = {mn, mx}; }
+    RAYKIT_INLINE void grow(const Corners& c) noexcept { g.grow(c.mn, c.mx); }
+    RAYKIT_INLINE void grow(const BinBox& b) noexcept { g.grow(b.g); }
+    RAYKIT_INLINE GrowBox box() const noexcept { return g; }
+#endif
+    RAYKIT_INLINE float half_area() const noexcept { return box().half_area(); }
+};
+
 }  // namespace detail
 
 struct BinnedSahBuilder {
@@ -177,7 +215,7 @@ struct BinnedSahBuilder {
 
 private:
     struct Bin {
-        detail::GrowBox box;
+        detail::BinBox box;
         std::uint32_t count = 0;
     };
 
@@ -335,12 +373,14 @@ private:
                     const Ref& r = refs[i];
                     std::uint32_t k[3];
                     bn.index3(&r.c.x, k);
+                    detail::BinBox::Corners c;
+                    detail::BinBox::corners(&r.box.min.x, &r.box.max.x, c);
                     Bin& bxn = dst[k[0]];
                     Bin& byn = dst[nb + k[1]];
                     Bin& bzn = dst[2 * nb + k[2]];
-                    r.grow_box(bxn.box), ++bxn.count;
-                    r.grow_box(byn.box), ++byn.count;
-                    r.grow_box(bzn.box), ++bzn.count;
+                    bxn.box.grow(c), ++bxn.count;
+                    byn.box.grow(c), ++byn.count;
+                    bzn.box.grow(c), ++bzn.count;
                 }
             };
             out.assign(3 * nb, Bin{});
@@ -563,7 +603,7 @@ private:
                 for (int a = 0; a < 3; ++a) {
                     if (!(ext[a] > 0.0f)) continue;
                     const Bin* ab = sc.bins.data() + static_cast<std::size_t>(a) * nb;
-                    detail::GrowBox acc;
+                    detail::BinBox acc;
                     std::uint32_t cnt = 0;
                     for (std::size_t k = nb - 1; k > 0; --k) {
                         acc.grow(ab[k].box);
@@ -571,7 +611,7 @@ private:
                         sc.rarea[k] = acc.half_area();
                         sc.rcount[k] = cnt;
                     }
-                    acc = detail::GrowBox{};
+                    acc = detail::BinBox{};
                     cnt = 0;
                     for (std::size_t k = 1; k < nb; ++k) {
                         acc.grow(ab[k - 1].box);
