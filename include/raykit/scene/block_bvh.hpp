@@ -82,9 +82,9 @@ struct BlockBvhT {
         return assemble(mesh, src, threads);
     }
     /// Builds a tree for blocks over `mesh` (binned SAH, sah_config()) and makes them.
-    /// (primitive_refs has checked the range: the blocks are assembled without a second pass.)
+    /// (primitive_arrays has checked the range: the blocks are assembled without a second pass.)
     static BlockBvhT build(const MeshView& mesh, unsigned threads = 0) {
-        const PrimitiveRefs r = primitive_refs(mesh, threads);
+        const detail::PrimitiveArrays r = detail::primitive_arrays(mesh, threads);
         Bvh bvh = BinnedSahBuilder::build(r.boxes, r.centers, sah_config(threads));
         if constexpr (W == 2) return assemble(mesh, std::move(bvh), threads);
         else return assemble(mesh, WideBvhT<W>::build(std::move(bvh)), threads);

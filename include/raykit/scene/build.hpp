@@ -10,6 +10,7 @@
 #include "raykit/math/limits.hpp"
 #include "raykit/scene/mesh.hpp"
 #include "raykit/util/parallel.hpp"
+#include "raykit/util/raw_array.hpp"
 
 namespace raykit {
 
@@ -23,22 +24,43 @@ struct PrimitiveRefs {
     std::vector<vec3> centers;
 };
 
-inline PrimitiveRefs primitive_refs(const MeshView& mesh, unsigned threads = 0) {
+namespace detail {
+
+/// Fills boxes[i] and centers[i] for every triangle (primitive_refs' rule), after the range check.
+inline void fill_primitive_refs(const MeshView& mesh, unsigned threads, AABB* boxes, vec3* centers) {
     check_positions(mesh.positions, "raykit: mesh");
+    parallel_for(mesh.size(), threads, [&](std::size_t i) {
+        boxes[i] = mesh.bounds(i);
+        centers[i] = boxes[i].is_empty() ? vec3(std::numeric_limits<float>::quiet_NaN()) : boxes[i].center();
+    });
+}
+
+/// primitive_refs for the library's own builds: arrays first touched by the threads that fill
+/// them (and reused from the block cache), where the vectors are zero-filled on one thread
+/// first; a two-thread BlockBvh8::build of the 1M torus spent 17 ms here against 8 on one.
+struct PrimitiveArrays {
+    RawArray<AABB> boxes;
+    RawArray<vec3> centers;
+};
+inline PrimitiveArrays primitive_arrays(const MeshView& mesh, unsigned threads = 0) {
+    PrimitiveArrays r{RawArray<AABB>(mesh.size()), RawArray<vec3>(mesh.size())};
+    fill_primitive_refs(mesh, threads, r.boxes.data(), r.centers.data());
+    return r;
+}
+
+}  // namespace detail
+
+inline PrimitiveRefs primitive_refs(const MeshView& mesh, unsigned threads = 0) {
     PrimitiveRefs r;
     r.boxes.resize(mesh.size());
     r.centers.resize(mesh.size());
-    parallel_for(mesh.size(), threads, [&](std::size_t i) {
-        r.boxes[i] = mesh.bounds(i);
-        r.centers[i] = r.boxes[i].is_empty() ? vec3(std::numeric_limits<float>::quiet_NaN())
-                                             : r.boxes[i].center();
-    });
+    detail::fill_primitive_refs(mesh, threads, r.boxes.data(), r.centers.data());
     return r;
 }
 
 template <class Builder = BinnedSahBuilder>
 Bvh build_bvh(const MeshView& mesh, const typename Builder::Config& cfg = {}) {
-    const PrimitiveRefs r = primitive_refs(mesh, cfg.threads);
+    const detail::PrimitiveArrays r = detail::primitive_arrays(mesh, cfg.threads);
     return Builder::build(r.boxes, r.centers, cfg);
 }
 

@@ -130,8 +130,8 @@ inline Bvh build_bvh(std::span<const AABB> boxes, std::span<const vec3> centers,
 }
 
 inline Bvh build_bvh(const MeshView& mesh, const BuildOptions& o) {
-    check_threads(o.threads, "build_bvh");  // before primitive_refs spends the time
-    const PrimitiveRefs r = primitive_refs(mesh, o.threads);
+    check_threads(o.threads, "build_bvh");  // before primitive_arrays spends the time
+    const detail::PrimitiveArrays r = detail::primitive_arrays(mesh, o.threads);
     return build_bvh(r.boxes, r.centers, o);
 }
 
