@@ -137,36 +137,21 @@ RAYKIT_INLINE unsigned lane_bits(const typename PacketLanes<N>::i& m) noexcept {
     return b;
 }
 
-/// The smallest / largest lane of `v` (lanes halved vector-wide down to 4, then in order);
-/// with NaN lanes the result is some lane's value.
-template <int N>
-RAYKIT_INLINE float lane_min(const typename PacketLanes<N>::f& v) noexcept {
+/// The smallest lane of `v` (the largest when kMax), lanes halved vector-wide down to 4, then
+/// taken in order; with NaN lanes the result is some lane's value.
+template <int N, bool kMax>
+RAYKIT_INLINE float lane_extreme(const typename PacketLanes<N>::f& v) noexcept {
     if constexpr (N <= 4) {
         float m = v[0];
-        for (int k = 1; k < N; ++k) m = v[k] < m ? v[k] : m;
+        for (int k = 1; k < N; ++k) m = (kMax ? v[k] > m : v[k] < m) ? v[k] : m;
         return m;
     } else {
         using vh = typename PacketLanes<N / 2>::f;
         vh a, b;
         __builtin_memcpy(&a, &v, sizeof(vh));
         __builtin_memcpy(&b, reinterpret_cast<const char*>(&v) + sizeof(vh), sizeof(vh));
-        const vh m = b < a ? b : a;
-        return lane_min<N / 2>(m);
-    }
-}
-template <int N>
-RAYKIT_INLINE float lane_max(const typename PacketLanes<N>::f& v) noexcept {
-    if constexpr (N <= 4) {
-        float m = v[0];
-        for (int k = 1; k < N; ++k) m = v[k] > m ? v[k] : m;
-        return m;
-    } else {
-        using vh = typename PacketLanes<N / 2>::f;
-        vh a, b;
-        __builtin_memcpy(&a, &v, sizeof(vh));
-        __builtin_memcpy(&b, reinterpret_cast<const char*>(&v) + sizeof(vh), sizeof(vh));
-        const vh m = b > a ? b : a;
-        return lane_max<N / 2>(m);
+        const vh m = kMax ? (b > a ? b : a) : (b < a ? b : a);
+        return lane_extreme<N / 2, kMax>(m);
     }
 }
 
@@ -208,7 +193,7 @@ struct RayPacket {
         __builtin_memcpy(&tmin, t0, sizeof(tmin));
         // the smallest tmin; a NaN tmin (that lane enters nothing) counts as +inf
         const vf tmin_or_inf = tmin < inf ? tmin : inf;
-        fr_tmin = detail::lane_min<N>(tmin_or_inf);
+        fr_tmin = detail::lane_extreme<N, false>(tmin_or_inf);
         frustum = true;
         for (int a = 0; a < 3; ++a) {
             vf dir;
@@ -223,11 +208,11 @@ struct RayPacket {
             frustum = frustum && detail::lane_bits<N>(finite) == kAll;
             // (plane − o)·v falls as o grows where v > 0, rises where v < 0 (one octant: one sign);
             // with every lane finite the extremes do not depend on the order they are taken in
-            const float olo = detail::lane_min<N>(org[a]), ohi = detail::lane_max<N>(org[a]);
+            const float olo = detail::lane_extreme<N, false>(org[a]), ohi = detail::lane_extreme<N, true>(org[a]);
             fr_org_near[a] = neg ? olo : ohi;
             fr_org_far[a] = neg ? ohi : olo;
-            fr_inv_lo[a] = detail::lane_min<N>(inv[a]);
-            fr_inv_hi[a] = detail::lane_max<N>(inv[a]);
+            fr_inv_lo[a] = detail::lane_extreme<N, false>(inv[a]);
+            fr_inv_hi[a] = detail::lane_extreme<N, true>(inv[a]);
         }
     }
 };
