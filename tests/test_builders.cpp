@@ -801,7 +801,7 @@ TEST(Builders, ParallelHelpersClampTheThreadCount) {
     EXPECT_LE(ids.size(), std::size_t(kMaxThreads));
 }
 
-TEST(Builders, BlockCacheReusesFreedBlocksAndKeepsAtMost64MiB) {
+TEST(Builders, BlockCacheReusesFreedBlocksAndKeepsAtMostItsLimit) {
     using detail::BlockCache;
     BlockCache& cache = BlockCache::get();
     trim_build_memory();
@@ -845,12 +845,24 @@ TEST(Builders, BlockCacheReusesFreedBlocksAndKeepsAtMost64MiB) {
     }
     cache.deallocate(p, mib + 1);
     cache.deallocate(other, 4 * mib);
-    // at most 64 MiB wait, the oldest leaving first; trim gives them all back
+    // at most build_memory_limit() bytes wait, the oldest leaving first; trim gives them all back
+    EXPECT_EQ(build_memory_limit(), BlockCache::kDefaultLimit);
+    set_build_memory_limit(64 * mib);
     std::vector<void*> big;
     for (int i = 0; i < 10; ++i) big.push_back(cache.allocate(10 * mib + std::size_t(i)));
     for (void* b : big) cache.deallocate(b, 10 * mib);
-    EXPECT_LE(cache.held(), BlockCache::kMaxBytes);
-    EXPECT_GE(cache.held(), BlockCache::kMaxBytes - 10 * mib);
+    EXPECT_LE(cache.held(), 64 * mib);
+    EXPECT_GE(cache.held(), 54 * mib);
+    const std::size_t held64 = cache.held();
+    set_build_memory_limit(32 * mib);  // a lower limit gives the excess back at once
+    EXPECT_LE(cache.held(), 32 * mib);
+    EXPECT_GE(cache.held(), 22 * mib);
+    EXPECT_LT(cache.held(), held64);
+    void* over = cache.allocate(40 * mib);  // a block over the limit is never kept
+    const std::size_t before = cache.held();
+    cache.deallocate(over, 40 * mib);
+    EXPECT_EQ(cache.held(), before);
+    set_build_memory_limit(BlockCache::kDefaultLimit);
     trim_build_memory();
     EXPECT_EQ(cache.held(), 0u);
     // trees built into reused (dirty) blocks are the trees built into fresh ones
