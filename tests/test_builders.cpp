@@ -349,6 +349,22 @@ TEST(Builders, PairwiseEqualsTheQuadraticReference) {
     }
 }
 
+TEST(Builders, BinnedSahSameTreeWhenSubtreesSplitTheirPasses) {
+    // subtrees of 64k primitives and more bin on the pool's spare members: at 150k triangles
+    // both of the torus's root children are that large, and 7 threads leave members spare
+    const Mesh torus = make_bumpy_torus(150000);
+    const PrimitiveRefs r = primitive_refs(torus);
+    BinnedSahBuilder::Config cfg;
+    cfg.leaf.max_leaf_size = 8;
+    cfg.threads = 1;
+    const Bvh one = BinnedSahBuilder::build(r.boxes, r.centers, cfg);
+    EXPECT_EQ(validate(one, r.boxes), "");
+    for (unsigned t : {2u, 3u, 7u}) {
+        cfg.threads = t;
+        EXPECT_TRUE(same_tree(one, BinnedSahBuilder::build(r.boxes, r.centers, cfg))) << t << " threads";
+    }
+}
+
 TEST(Builders, PairwiseOnSeveralThreadsEqualsTheQuadraticReference) {
     // Lists long enough (≥ 2 · 4096) that a level is cut into parts whose guesses are checked:
     // a random soup (no order: many wrong guesses), a torus (list order follows the surface) and

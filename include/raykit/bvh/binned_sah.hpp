@@ -28,10 +28,11 @@
 // parallel_threshold primitives then hands its subtrees to a queue
 // (detail::TaskQueue) that the team drains, largest subtree first, and inside
 // it the binning and bounds passes of nodes over 64k primitives run in chunks
-// on teams of their own. The tree is the same for every thread count: splits
-// depend only on the primitive set, and nodes are written in depth-first
-// pre-order as they are made (a handed-off subtree into a buffer of its own;
-// the buffers are put together at the end, on the team). Against forking
+// on teams of the task's thread and the pool's idle members. The tree is the
+// same for every thread count: splits depend only on the primitive set, and
+// nodes are written in depth-first pre-order as they are made (a handed-off
+// subtree into a buffer of its own; the buffers are put together at the end,
+// on the team). Against forking
 // two threads per node down to depth log2(threads)+2, the pool is 4-10 %
 // faster on two threads (bunny 13.2-14.0 -> 11.9-12.3 ms, same trees). Against
 // a one-call team per pass (nine per bunny build, ~56 µs each to start), the
@@ -309,11 +310,32 @@ private:
 
         static constexpr std::size_t kParallelPass = 65536;
 
-        /// Whether a pass over n records runs on several threads: from kMinParallelPass on the
-        /// build's team, from kParallelPass inside the pool's tasks (a team of its own per pass).
-        bool wide_pass(std::size_t n) const noexcept {
-            return threads > 1 && n >= (team ? detail::kMinParallelPass : kParallelPass);
-        }
+        /// The threads a pass over n records runs on: the build's team from kMinParallelPass on;
+        /// inside the pool's tasks, from kParallelPass on, a team of its own of this thread and
+        /// the members the pool can lend it (TaskQueue::borrow: those no subtree occupies, as the
+        /// first subtrees leave them on many cores), given back when the pass ends. A team of
+        /// `threads` there ran beside the other busy members: on two threads the 1M-triangle
+        /// torus's BlockBvh8::build took 7 % longer than with no team at all in the tasks
+        /// (median of 12 paired builds).
+        struct PassThreads {
+            detail::TaskQueue<Task>* pool = nullptr;
+            unsigned lent = 0, count = 1;
+            PassThreads(const Impl& impl, std::size_t n) {
+                if (impl.threads <= 1) return;
+                if (impl.team) {
+                    count = n >= detail::kMinParallelPass ? impl.threads : 1u;
+                } else if (n >= kParallelPass && impl.pool) {
+                    pool = impl.pool;
+                    lent = pool->borrow(impl.threads - 1);
+                    count = 1 + lent;
+                }
+            }
+            ~PassThreads() {
+                if (lent) pool->give_back(lent);
+            }
+            PassThreads(const PassThreads&) = delete;
+            PassThreads& operator=(const PassThreads&) = delete;
+        };
 
         void bounds(std::uint32_t b, std::uint32_t e, AABB& box, AABB& cbox) const {
             auto pass = [&](std::size_t lo, std::size_t hi, AABB& bx, AABB& cb) {
@@ -326,13 +348,14 @@ private:
                 cb.grow(gc.aabb());
             };
             const std::size_t n = e - b;
-            if (!wide_pass(n)) {
+            const PassThreads pt(*this, n);
+            if (pt.count <= 1) {
                 pass(b, e, box, cbox);
                 return;
             }
             constexpr std::size_t kChunks = 16;
             std::array<AABB, kChunks> bx{}, cb{};
-            detail::run_chunks(team, threads, n, kChunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+            detail::run_chunks(team, pt.count, n, kChunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
                 pass(b + lo, b + hi, bx[c], cb[c]);
             });
             for (std::size_t c = 0; c < kChunks; ++c) {
@@ -385,13 +408,14 @@ private:
             };
             out.assign(3 * nb, Bin{});
             const std::size_t n = e - b;
-            if (!wide_pass(n)) {
+            const PassThreads pt(*this, n);
+            if (pt.count <= 1) {
                 pass(b, e, out.data());
                 return;
             }
             constexpr std::size_t kChunks = 16;
             std::vector<Bin> part(kChunks * 3 * nb);
-            detail::run_chunks(team, threads, n, kChunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
+            detail::run_chunks(team, pt.count, n, kChunks, [&](std::size_t c, std::size_t lo, std::size_t hi) {
                 pass(b + lo, b + hi, part.data() + c * 3 * nb);
             });
             for (std::size_t c = 0; c < kChunks; ++c)

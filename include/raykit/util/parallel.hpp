@@ -238,8 +238,23 @@ public:
     /// `team` (a build's; the tasks may not use it).
     template <class Run>
     void drain(WorkTeam& team, Run&& run) {
+        members_ = team.size();
         team.each([&](unsigned) { work(run); });
         if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+    }
+    /// Lends a task up to `want` of the draining team's members that neither run a task, nor
+    /// will take a waiting one, nor are lent already (the task then runs a pass on that many
+    /// more threads of its own while they wait); returns how many. give_back() returns them.
+    unsigned borrow(unsigned want) {
+        const std::lock_guard lock(m_);
+        const std::size_t busy = running_ + tasks_.size() + lent_;
+        const unsigned k = busy < members_ ? std::min(want, members_ - static_cast<unsigned>(busy)) : 0u;
+        lent_ += k;
+        return k;
+    }
+    void give_back(unsigned k) {
+        const std::lock_guard lock(m_);
+        lent_ -= k;
     }
 
 private:
@@ -274,6 +289,8 @@ private:
     std::condition_variable cv_;
     std::vector<Sized> tasks_;
     unsigned running_ = 0;  // threads inside a task
+    unsigned members_ = 0;  // the draining team's size
+    unsigned lent_ = 0;     // members lent to tasks' passes (borrow)
     std::exception_ptr error_;
 };
 
