@@ -318,8 +318,9 @@ private:
         /// torus's BlockBvh8::build took 7 % longer than with no team at all in the tasks
         /// (median of 12 paired builds).
         struct PassThreads {
-            detail::TaskQueue<Task>* pool = nullptr;
-            unsigned lent = 0, count = 1;
+            detail::TaskQueue<Task>* pool = nullptr;  ///< the pool that lent members, if any
+            unsigned lent = 0;                         ///< members borrowed from it
+            unsigned count = 1;                        ///< threads the pass runs on
             PassThreads(const Impl& impl, std::size_t n) {
                 if (impl.threads <= 1) return;
                 if (impl.team) {

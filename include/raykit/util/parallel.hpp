@@ -252,6 +252,7 @@ public:
         lent_ += k;
         return k;
     }
+    /// Returns k members that borrow() lent.
     void give_back(unsigned k) {
         const std::lock_guard lock(m_);
         lent_ -= k;
