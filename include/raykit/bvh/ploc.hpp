@@ -84,15 +84,15 @@ struct PlocBuilder {
         if (cfg.radius < 1 || cfg.radius > 1024) throw std::invalid_argument("PlocBuilder: radius must be in [1, 1024]");
         const unsigned threads = resolve_threads(cfg.threads);
         const auto n = static_cast<std::uint32_t>(boxes.size());
-        const detail::SanitizedCenters sc = detail::sanitize_centers(centers, threads);
+        // Helper threads for the whole build: an iteration is a few short passes.
+        detail::WorkTeam team(n >= detail::kMinParallelPass ? threads : 1u);
+        const detail::SanitizedCenters sc = detail::sanitize_centers(centers, team.size(), &team);
         detail::MergeTree tree;
         tree.prims = n;
         tree.info.reserve(n > 0 ? n - 1 : 0);
 
-        // Helper threads for the whole build: an iteration is a few short passes.
-        detail::WorkTeam team(n >= detail::kMinParallelPass ? threads : 1u);
         auto par_for = [&](std::size_t m, auto&& fn) {
-            team.chunks(m, m < detail::kMinParallelPass ? 1 : team.size(),
+            team.chunks(m, detail::team_chunks(m, team.size()),
                         [&](std::size_t, std::size_t lo, std::size_t hi) {
                             for (std::size_t i = lo; i < hi; ++i) fn(i);
                         });
@@ -121,7 +121,7 @@ struct PlocBuilder {
         std::vector<std::uint32_t> merges, keeps;  // per chunk, then exclusive prefix sums
         while (cur.size() > 1) {
             const std::size_t m = cur.size();
-            const std::size_t chunks = detail::pass_chunks(m);
+            const std::size_t chunks = detail::team_chunks(m, team.size());
             nn.resize(m);
             // 1. nearest neighbours
             team.chunks(m, chunks, [&](std::size_t, std::size_t lo, std::size_t hi) {

@@ -140,7 +140,9 @@ struct SortAxisBuilder {
         const bool area = cfg.metric == Config::Metric::area;
         const bool mutual = cfg.pairing == Config::Pairing::mutual;
         const auto n = static_cast<std::uint32_t>(boxes.size());
-        const detail::SanitizedCenters sc = detail::sanitize_centers(centers, threads);
+        // Helper threads for the whole build: a level is a few short passes.
+        detail::WorkTeam team(n >= 2 * kChunk ? threads : 1u);
+        const detail::SanitizedCenters sc = detail::sanitize_centers(centers, team.size(), &team);
         detail::MergeTree tree;
         tree.prims = n;
         tree.info.reserve(n > 0 ? n - 1 : 0);
@@ -160,8 +162,6 @@ struct SortAxisBuilder {
         // whose new nodes would move too far for the insertion sort.
         detail::RawArray<std::uint64_t> keys(n), scratch;
         detail::RawArray<std::uint32_t> nn;  // mutual pairing: nearest neighbour (sorted positions)
-        // Helper threads for the whole build: a level is a few short passes.
-        detail::WorkTeam team(n >= 2 * kChunk ? threads : 1u);
         team.chunks(n, detail::pass_chunks(n), [&](std::size_t, std::size_t lo, std::size_t hi) {
             for (std::size_t i = lo; i < hi; ++i) keys[i] = key(sc[i], static_cast<std::uint32_t>(i));
         });
