@@ -171,27 +171,27 @@ struct SortAxisBuilder {
         std::vector<std::uint32_t> chunk_out, chunk_pairs;
         std::size_t m = n;
         bool first = true;  // level 0 reads the primitives directly
-        // gathers the sorted elements [lo, hi) of this level into srt
-        auto gather = [&](std::size_t w, std::size_t lo, std::size_t hi) {
-            if (first) {  // the primitives, in key order: a random gather, so prefetch ahead
-                constexpr std::size_t kAhead = 16;
-                bool bad = false;
-                for (std::size_t s = lo; s < hi; ++s) {
-                    if (s + kAhead < hi) {
-                        const auto f = static_cast<std::uint32_t>(keys[s + kAhead]);
-                        __builtin_prefetch(&boxes[f]);
-                        __builtin_prefetch(&sc[f]);
-                    }
-                    const auto e = static_cast<std::uint32_t>(keys[s]);
-                    const AABB& b = boxes[e];
-                    const bool real = !b.is_empty() && detail::box_is_finite(b);
-                    bad |= !real;
-                    srt.e[s] = {real ? b : AABB::of_point(sc[e]), e, detail::primitive_cost(b, lc)};
-                    if (!area) srt.centre[s] = sc[e];
-                    skey[s] = static_cast<std::uint32_t>(keys[s] >> 32);
+        // level 0: the sorted primitives [lo, hi) into srt, in key order (a
+        // random gather, so it prefetches ahead); later levels are already
+        // in order (step 3)
+        auto gather_primitives = [&](std::size_t w, std::size_t lo, std::size_t hi) {
+            constexpr std::size_t kAhead = 16;
+            bool bad = false;
+            for (std::size_t s = lo; s < hi; ++s) {
+                if (s + kAhead < hi) {
+                    const auto f = static_cast<std::uint32_t>(keys[s + kAhead]);
+                    __builtin_prefetch(&boxes[f]);
+                    __builtin_prefetch(&sc[f]);
                 }
-                substituted[w] |= bad;
+                const auto e = static_cast<std::uint32_t>(keys[s]);
+                const AABB& b = boxes[e];
+                const bool real = !b.is_empty() && detail::box_is_finite(b);
+                bad |= !real;
+                srt.e[s] = {real ? b : AABB::of_point(sc[e]), e, detail::primitive_cost(b, lc)};
+                if (!area) srt.centre[s] = sc[e];
+                skey[s] = static_cast<std::uint32_t>(keys[s] >> 32);
             }
+            substituted[w] |= bad;
         };
         srt.resize(n, !area);
         skey.resize(n);
@@ -202,14 +202,15 @@ struct SortAxisBuilder {
             const unsigned workers = static_cast<unsigned>(std::min<std::size_t>(threads, chunks));
             chunk_out.assign(chunks + 1, 0);
             chunk_pairs.assign(chunks + 1, 0);
-            // 1. gather in sorted order; mutual: nearest neighbours within
-            //    ±W in the chunk and the chunk's count of mutual pairs
+            // 1. level 0: gather the primitives in sorted order; mutual:
+            //    nearest neighbours within ±W in the chunk and the chunk's
+            //    count of mutual pairs
             if (mutual) nn.resize(m);
             team.chunks(chunks, workers, [&](std::size_t w, std::size_t c0, std::size_t c1) {
                 std::vector<float> fwd;
                 for (std::size_t c = c0; c < c1; ++c) {
                     const std::size_t lo = lo_of(c), hi = lo_of(c + 1);
-                    gather(w, lo, hi);
+                    if (first) gather_primitives(w, lo, hi);
                     if (!mutual) continue;
                     nearest(srt, lo, hi, cfg.window, area, nn, fwd);
                     std::uint32_t pairs = 0;
