@@ -896,8 +896,9 @@ TEST(CliReadme, EveryExampleCommandRuns) {
                 continue;
             }
             for (long k = first; k < first + frames; ++k) {
-                char num[32];
-                std::snprintf(num, sizeof num, "%0*ld", x[pct + 1] == '0' ? x[pct + 2] - '0' : 0, k);
+                char num[32];  // a width of at most 9 digits and a long's 20 characters fit
+                const int width = x[pct + 1] == '0' ? std::clamp(x[pct + 2] - '0', 0, 9) : 0;
+                std::snprintf(num, sizeof num, "%0*ld", width, k);
                 outputs.push_back(root / (x.substr(0, pct) + num + x.substr(x.find('d', pct) + 1)));
             }
         }
