@@ -75,11 +75,12 @@
 // keeps the sort, the window and the chunked parallel pairing, and builds
 // about as fast (the waiting elements add levels, but the sort of a level
 // only places the new nodes). Against Embree's Morton (LOW) build, set on
-// the scene and the geometry both, the default builds 0.29-0.67x as many
+// the scene and the geometry both, the default builds 0.34-0.79x as many
 // triangles per second on two threads on the same four meshes (README: the
-// bunny, thesis scene and 100k torus 0.29-0.67x, the 1M torus 0.62-0.67x;
-// 0.30-0.38x before the level sort above; an earlier 1.4-2.0x timed a MEDIUM
-// build by mistake). W = 2 on each
+// 1M torus 0.68-0.79x, the smaller meshes 0.34-0.71x, after the neighbour
+// search in SIMD (nearest, area_rows; 1.11-1.18x in paired builds); 0.29-0.67x
+// before it, 0.30-0.38x before the level sort above; an earlier 1.4-2.0x timed
+// a MEDIUM build by mistake). W = 2 on each
 // side is the best measured trade: W = 1 is 5-22 % faster but loses 4-5 %,
 // W = 4 gains under 1 % on the meshes for 5-19 % more time.
 #pragma once
