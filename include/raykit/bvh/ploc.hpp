@@ -28,7 +28,8 @@
 // restructuring). Plain PLOC's trees cost 1.08-1.10x binned SAH's on the
 // bunny and the bumpy tori (0.75x on the thesis scene); with the default
 // pass 1.043-1.045x (0.73x), at 3-4x plain PLOC's build time (1.2-1.3x
-// binned SAH's, two threads).
+// binned SAH's, two threads; 4-5x since step 1 runs in SIMD, nearest(): plain
+// PLOC 1.56-1.74x faster in paired builds, the same trees).
 //
 // Merging can chain (one cluster absorbing singletons iteration after
 // iteration), so the merge tree may be deep: the shared back end
