@@ -835,6 +835,88 @@ TEST(Builders, SortAxisEqualsThePlainRuleWhenNewNodesLandFarFromTheirChildren) {
     }
 }
 
+/// Plain PLOC written out (post-pass off): the primitives in Morton order (ties by index); per
+/// round every cluster's nearest among the R on each side by merged area, the first smallest;
+/// mutual pairs merge into a node at the lower position, numbered in array order; the array is
+/// compacted. No chunks, no SIMD, no incremental phase.
+static detail::MergeTree ploc_reference(std::span<const AABB> boxes, std::span<const vec3> centers, std::size_t R) {
+    AABB cb;
+    for (const vec3& c : centers) cb.grow(c);
+    const detail::MortonQuantizer mq(cb);
+    std::vector<std::uint32_t> order(boxes.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<std::uint32_t>(i);
+    std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return mq(centers[a]) < mq(centers[b]); });
+    struct Cluster {
+        AABB box;
+        std::uint32_t node;
+    };
+    std::vector<Cluster> level;
+    for (const std::uint32_t p : order) level.push_back({boxes[p], p});
+    detail::MergeTree t;
+    t.prims = static_cast<std::uint32_t>(boxes.size());
+    while (level.size() > 1) {
+        const std::size_t m = level.size();
+        std::vector<std::size_t> nn(m);
+        for (std::size_t i = 0; i < m; ++i) {
+            float best = 0.0f;
+            bool any = false;
+            for (std::size_t j = i > R ? i - R : 0; j < std::min(m, i + R + 1); ++j) {
+                if (j == i) continue;
+                const float d = fused_proof_half_area(merge(level[i].box, level[j].box));
+                if (!any || d < best) best = d, nn[i] = j, any = true;
+            }
+        }
+        std::vector<Cluster> next;
+        for (std::size_t i = 0; i < m; ++i) {
+            const std::size_t j = nn[i];
+            if (nn[j] != i) {
+                next.push_back(level[i]);
+            } else if (i < j) {
+                next.push_back({merge(level[i].box, level[j].box), t.add(level[i].node, level[j].node)});
+            }
+        }
+        t.close_batch();
+        level = std::move(next);
+    }
+    t.root = level.empty() ? 0 : level[0].node;
+    return t;
+}
+
+TEST(Builders, PlocEqualsThePlainRule) {
+    // Random boxes, half of them twice (the same box and centroid: equal distances, so the
+    // first smallest decides), against the rule written out; PLOC's search computes each pair
+    // once, four at a time, for clusters whose window is whole.
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<float> U(0.0f, 1.0f);
+    for (std::size_t n : {2u, 3u, 40u, 3000u}) {
+        std::vector<AABB> boxes(n);
+        std::vector<vec3> centers(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            if (i % 2 == 1 && n > 3) {
+                boxes[i] = boxes[i - 1];
+                centers[i] = centers[i - 1];
+                continue;
+            }
+            centers[i] = vec3(U(rng), U(rng), U(rng));
+            boxes[i] = AABB{centers[i] - vec3(0.01f + 0.05f * U(rng)), centers[i] + vec3(0.01f + 0.05f * U(rng))};
+        }
+        for (unsigned R : {1u, 2u, 4u, 9u}) {
+            PlocBuilder::Config cfg;
+            cfg.radius = R;
+            cfg.optimize = OptimizeConfig::off();
+            for (unsigned threads : {1u, 2u}) {
+                cfg.threads = threads;
+                const Bvh built = PlocBuilder::build(boxes, centers, cfg);
+                detail::MergeTree ref = ploc_reference(boxes, centers, R);
+                const Bvh want = detail::finish_bottom_up(ref, boxes, centers, cfg.leaf, 1);
+                EXPECT_EQ(validate(built, boxes), "") << n << " boxes, R " << R;
+                EXPECT_TRUE(same_tree(built, want)) << n << " boxes, R " << R << ", " << threads << " threads: "
+                                                    << built.nodes.size() << " nodes against " << want.nodes.size();
+            }
+        }
+    }
+}
+
 // ---- issue 12: thread counts and generator sizes are bounded ----------------------------------
 
 TEST(Builders, ThreadCountsAboveTheLimitAreRejected) {
