@@ -274,31 +274,15 @@ private:
         // vectors stay local to this function (no vector parameters or returns: -Wpsabi)
         typedef float vf __attribute__((vector_size(16)));
         typedef std::int32_t vi __attribute__((vector_size(16)));
-        typedef double vd __attribute__((vector_size(32)));
         const std::size_t base = vlo - R, len = vhi - base;  // pairs (p, p + k), p in [base, vhi)
         d.resize(R * len);
-        const float* const lo6[3] = {c.lx.data(), c.ly.data(), c.lz.data()};
-        const float* const hi6[3] = {c.hx.data(), c.hy.data(), c.hz.data()};
-        const vf big = vf{} + detail::kFloatMax;
+        const float* const rows_lo[3] = {c.lx.data(), c.ly.data(), c.lz.data()};
+        const float* const rows_hi[3] = {c.hx.data(), c.hy.data(), c.hz.data()};
         for (std::size_t k = 1; k <= R; ++k) {
             float* f = d.data() + (k - 1) * len;
             std::size_t p = base;
-            for (; p + kLanes <= vhi; p += kLanes) {
-                vf e[3];
-                for (std::size_t a = 0; a < 3; ++a) {
-                    vf l0, l1, h0, h1;  // p's box (window_areas' a) and p + k's (its candidate)
-                    __builtin_memcpy(&l0, lo6[a] + p, sizeof(vf));
-                    __builtin_memcpy(&l1, lo6[a] + p + k, sizeof(vf));
-                    __builtin_memcpy(&h0, hi6[a] + p, sizeof(vf));
-                    __builtin_memcpy(&h1, hi6[a] + p + k, sizeof(vf));
-                    const vf ex = (h1 > h0 ? h1 : h0) - (l1 < l0 ? l1 : l0);
-                    e[a] = ex < big ? ex : big;
-                }
-                const vd x = __builtin_convertvector(e[0], vd), y = __builtin_convertvector(e[1], vd),
-                         z = __builtin_convertvector(e[2], vd);
-                const vf s = __builtin_convertvector((x * y + y * z) + z * x, vf);  // fused_proof_half_area
-                __builtin_memcpy(f + (p - base), &s, sizeof(vf));
-            }
+            // window_areas' float for p's window: its a is p's box, its candidate p + k's
+            for (; p + kLanes <= vhi; p += kLanes) detail::merged_half_areas4(rows_lo, rows_hi, p, k, f + (p - base));
             for (; p < vhi; ++p) {
                 window_areas(c.box(p), c.lx.data() + p + k, c.ly.data() + p + k, c.lz.data() + p + k,
                              c.hx.data() + p + k, c.hy.data() + p + k, c.hz.data() + p + k, 1, f + (p - base));

@@ -93,4 +93,34 @@ inline vec3 box_centre(const AABB& b) noexcept { return b.min * 0.5f + b.max * 0
 /// Clamp of a non-negative float difference that overflowed.
 inline float clamp_extent(float e) noexcept { return e < kFloatMax ? e : kFloatMax; }
 
+/// The bottom-up builders' neighbour distance four pairs at a time: out[l] = the half area
+/// (fused_proof_half_area, bvh/sah.hpp) of the merged box of boxes p + l and p + k + l, each
+/// extent clamped (clamp_extent), for l = 0..3, the boxes given as coordinate rows lo[axis][i],
+/// hi[axis][i]. Each lane takes the scalar steps (the corners by std::max / std::min's selects,
+/// the clamp, the products summed in double), so every distance is the scalar one bit for bit.
+/// Sort by axis (area_rows) and PLOC (nearest) search with it; one pair at a time, those
+/// distances were half of sort by axis's search and most of PLOC's. GCC's vector extensions:
+/// SSE2 vectors in a plain -O2 build.
+inline void merged_half_areas4(const float* const lo[3], const float* const hi[3], std::size_t p, std::size_t k,
+                               float* out) noexcept {
+    // vectors stay local (no vector parameters or returns: -Wpsabi)
+    typedef float vf __attribute__((vector_size(16)));
+    typedef double vd __attribute__((vector_size(32)));
+    const vf big = vf{} + kFloatMax;
+    vf e[3];
+    for (std::size_t a = 0; a < 3; ++a) {
+        vf l0, l1, h0, h1;
+        __builtin_memcpy(&l0, lo[a] + p, sizeof(vf));
+        __builtin_memcpy(&l1, lo[a] + p + k, sizeof(vf));
+        __builtin_memcpy(&h0, hi[a] + p, sizeof(vf));
+        __builtin_memcpy(&h1, hi[a] + p + k, sizeof(vf));
+        const vf d = (h0 < h1 ? h1 : h0) - (l1 < l0 ? l1 : l0);  // std::max(h0, h1) - std::min(l0, l1)
+        e[a] = d < big ? d : big;
+    }
+    const vd x = __builtin_convertvector(e[0], vd), y = __builtin_convertvector(e[1], vd),
+             z = __builtin_convertvector(e[2], vd);
+    const vf s = __builtin_convertvector((x * y + y * z) + z * x, vf);
+    __builtin_memcpy(out, &s, sizeof(vf));
+}
+
 }  // namespace raykit::detail

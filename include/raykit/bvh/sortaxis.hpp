@@ -521,11 +521,8 @@ private:
     }
 
     /// nearest()'s distance rows for Metric::area: fwd[(k−1)·len + r] = area_dist(S[lo + r],
-    /// S[lo + r + k]) for k = 1..W, four elements at a time. The chunk's boxes are first copied
-    /// into six coordinate rows at `soa` (6·len floats), then each lane takes area_dist's steps
-    /// (std::max / std::min as the same selects, the clamp, the sum in double), so every
-    /// distance is area_dist's float bit for bit. Scalar, the distances were half of nearest()'s
-    /// time, and nearest() a fifth of a build's (1M torus, perf).
+    /// S[lo + r + k]) for k = 1..W, four pairs at a time (detail::merged_half_areas4, the same
+    /// floats), from the chunk's boxes copied into six coordinate rows at `soa` (6·len floats).
     static void area_rows(const Level& S, std::size_t lo, std::size_t len, std::size_t W, float* fwd, float* soa) {
         float* c[6];
         for (std::size_t a = 0; a < 6; ++a) c[a] = soa + a * len;
@@ -538,33 +535,13 @@ private:
             c[4][r] = b.max.y;
             c[5][r] = b.max.z;
         }
-        // vectors stay local to this function (no vector parameters or returns: -Wpsabi)
-        typedef float vf __attribute__((vector_size(16)));
-        typedef double vd __attribute__((vector_size(32)));
-        constexpr std::size_t kLanes = 4;
-        const vf big = vf{} + detail::kFloatMax;
+        const float* const rows_lo[3] = {c[0], c[1], c[2]};
+        const float* const rows_hi[3] = {c[3], c[4], c[5]};
         for (std::size_t k = 1; k <= W; ++k) {
             float* f = fwd + (k - 1) * len;
             const std::size_t pairs = len - k;
             std::size_t r = 0;
-            for (; r + kLanes <= pairs; r += kLanes) {
-                vf e[3];
-                for (std::size_t a = 0; a < 3; ++a) {
-                    vf l0, l1, h0, h1;
-                    __builtin_memcpy(&l0, c[a] + r, sizeof(vf));
-                    __builtin_memcpy(&l1, c[a] + r + k, sizeof(vf));
-                    __builtin_memcpy(&h0, c[a + 3] + r, sizeof(vf));
-                    __builtin_memcpy(&h1, c[a + 3] + r + k, sizeof(vf));
-                    const vf mx = h0 < h1 ? h1 : h0;  // std::max(h0, h1)
-                    const vf mn = l1 < l0 ? l1 : l0;  // std::min(l0, l1)
-                    const vf d = mx - mn;
-                    e[a] = d < big ? d : big;  // clamp_extent
-                }
-                const vd x = __builtin_convertvector(e[0], vd), y = __builtin_convertvector(e[1], vd),
-                         z = __builtin_convertvector(e[2], vd);
-                const vf s = __builtin_convertvector((x * y + y * z) + z * x, vf);  // fused_proof_half_area
-                __builtin_memcpy(f + r, &s, sizeof(vf));
-            }
+            for (; r + 4 <= pairs; r += 4) detail::merged_half_areas4(rows_lo, rows_hi, r, k, f + r);
             for (; r < pairs; ++r) f[r] = area_dist(S.e[lo + r].box, S.e[lo + r + k].box);
         }
     }
