@@ -763,6 +763,50 @@ TEST(Builders, MutualPairingSplitsTiesEvenly) {
 /// each element's nearest among its W neighbours on each side, mutual pairs merged (the new
 /// node where its first child was, keyed by its box's centre), the others carried. For one
 /// chunk per level (fewer than 2·kChunk elements) and inputs whose distances do not tie.
+/// n centroids uniform in the unit cube, each with the box box_of(centroid, U) (U() draws from
+/// [0, 1)); with `doubled`, every odd one repeats the one before it (same box, same centroid).
+struct BoxSet {
+    std::vector<AABB> boxes;
+    std::vector<vec3> centers;
+};
+template <class BoxOf>
+static BoxSet random_box_set(std::mt19937& rng, std::size_t n, bool doubled, const BoxOf& box_of) {
+    std::uniform_real_distribution<float> dist(0.0f, 1.0f);
+    auto U = [&] { return dist(rng); };
+    BoxSet set{std::vector<AABB>(n), std::vector<vec3>(n)};
+    std::vector<AABB>& boxes = set.boxes;
+    std::vector<vec3>& centers = set.centers;
+    for (std::size_t i = 0; i < n; ++i) {
+        if (doubled && i % 2 == 1) {
+            boxes[i] = boxes[i - 1];
+            centers[i] = centers[i - 1];
+            continue;
+        }
+        centers[i] = vec3(U(), U(), U());
+        boxes[i] = box_of(centers[i], U);
+    }
+    return set;
+}
+
+/// The round both plain-rule references below share: elements that are each other's nearest
+/// (nn) merge into a new node at the lower position, numbered in order (one batch of `t`); the
+/// others carry on unchanged. make(a, b, id) is the new element over a and b.
+template <class E, class Make>
+static std::vector<E> merge_mutual_round(const std::vector<E>& level, const std::vector<std::size_t>& nn,
+                                         detail::MergeTree& t, const Make& make) {
+    std::vector<E> next;
+    for (std::size_t i = 0; i < level.size(); ++i) {
+        const std::size_t j = nn[i];
+        if (j == i || nn[j] != i) {
+            next.push_back(level[i]);
+        } else if (i < j) {
+            next.push_back(make(level[i], level[j], t.add(level[i].node, level[j].node)));
+        }
+    }
+    t.close_batch();
+    return next;
+}
+
 static detail::MergeTree sortaxis_reference(std::span<const AABB> boxes, std::span<const vec3> centers, std::size_t W) {
     AABB cb;
     for (const vec3& c : centers) cb.grow(c);
@@ -788,19 +832,12 @@ static detail::MergeTree sortaxis_reference(std::span<const AABB> boxes, std::sp
                 if (j != i && d < best) best = d, nn[i] = j;
             }
         }
-        std::vector<Element> next;
-        for (std::size_t i = 0; i < m; ++i) {
-            const std::size_t j = nn[i];
-            if (j == i || nn[j] != i) {
-                next.push_back(level[i]);
-            } else if (i < j) {
-                const AABB box = merge(level[i].box, level[j].box);
-                next.push_back({box, t.add(level[i].node, level[j].node), mq.code30(detail::box_centre(box))});
-            }
-        }
+        std::vector<Element> next = merge_mutual_round(level, nn, t, [&](const Element& a, const Element& b, std::uint32_t id) {
+            const AABB box = merge(a.box, b.box);
+            return Element{box, id, mq.code30(detail::box_centre(box))};
+        });
         EXPECT_FALSE(m > SortAxisBuilder::kGreedyFallbackMin && (m - next.size()) * SortAxisBuilder::kMinMutualShare < m)
             << "the reference has no greedy levels";
-        t.close_batch();
         level = std::move(next);
     }
     t.root = level.empty() ? 0 : level[0].node;
@@ -813,15 +850,11 @@ TEST(Builders, SortAxisEqualsThePlainRuleWhenNewNodesLandFarFromTheirChildren) {
     // (centroids). The builder places the new nodes with an insertion sort while that moves
     // at most four elements per element, else with a radix sort (4 or 5 of the 3000 boxes' levels).
     std::mt19937 rng(29);
-    std::uniform_real_distribution<float> U(0.0f, 1.0f);
     for (std::size_t n : {2u, 3u, 100u, 3000u}) {
-        std::vector<AABB> boxes(n);
-        std::vector<vec3> centers(n);
-        for (std::size_t i = 0; i < n; ++i) {
-            centers[i] = vec3(U(rng), U(rng), U(rng));
-            const vec3 p = centers[i] + vec3(U(rng), U(rng), U(rng)) * 4.0f - vec3(2.0f);
-            boxes[i] = AABB{p - vec3(0.01f + 0.1f * U(rng)), p + vec3(0.01f + 0.1f * U(rng))};
-        }
+        const auto [boxes, centers] = random_box_set(rng, n, false, [](const vec3& c, auto& U) {
+            const vec3 p = c + vec3(U(), U(), U()) * 4.0f - vec3(2.0f);
+            return AABB{p - vec3(0.01f + 0.1f * U()), p + vec3(0.01f + 0.1f * U())};
+        });
         for (unsigned W : {1u, 2u, 4u}) {
             SortAxisBuilder::Config cfg;
             cfg.window = W;
@@ -866,17 +899,9 @@ static detail::MergeTree ploc_reference(std::span<const AABB> boxes, std::span<c
                 if (!any || d < best) best = d, nn[i] = j, any = true;
             }
         }
-        std::vector<Cluster> next;
-        for (std::size_t i = 0; i < m; ++i) {
-            const std::size_t j = nn[i];
-            if (nn[j] != i) {
-                next.push_back(level[i]);
-            } else if (i < j) {
-                next.push_back({merge(level[i].box, level[j].box), t.add(level[i].node, level[j].node)});
-            }
-        }
-        t.close_batch();
-        level = std::move(next);
+        level = merge_mutual_round(level, nn, t, [](const Cluster& a, const Cluster& b, std::uint32_t id) {
+            return Cluster{merge(a.box, b.box), id};
+        });
     }
     t.root = level.empty() ? 0 : level[0].node;
     return t;
@@ -887,19 +912,10 @@ TEST(Builders, PlocEqualsThePlainRule) {
     // first smallest decides), against the rule written out; PLOC's search computes each pair
     // once, four at a time, for clusters whose window is whole.
     std::mt19937 rng(31);
-    std::uniform_real_distribution<float> U(0.0f, 1.0f);
     for (std::size_t n : {2u, 3u, 40u, 3000u}) {
-        std::vector<AABB> boxes(n);
-        std::vector<vec3> centers(n);
-        for (std::size_t i = 0; i < n; ++i) {
-            if (i % 2 == 1 && n > 3) {
-                boxes[i] = boxes[i - 1];
-                centers[i] = centers[i - 1];
-                continue;
-            }
-            centers[i] = vec3(U(rng), U(rng), U(rng));
-            boxes[i] = AABB{centers[i] - vec3(0.01f + 0.05f * U(rng)), centers[i] + vec3(0.01f + 0.05f * U(rng))};
-        }
+        const auto [boxes, centers] = random_box_set(rng, n, n > 3, [](const vec3& c, auto& U) {
+            return AABB{c - vec3(0.01f + 0.05f * U()), c + vec3(0.01f + 0.05f * U())};
+        });
         for (unsigned R : {1u, 2u, 4u, 9u}) {
             PlocBuilder::Config cfg;
             cfg.radius = R;
