@@ -126,8 +126,7 @@ struct PlocBuilder {
             nn.resize(m);
             // 1. nearest neighbours
             team.chunks(m, chunks, [&](std::size_t, std::size_t lo, std::size_t hi) {
-                std::vector<float> d;
-                nearest(cur, lo, hi, R, nn, d);
+                nearest(cur, lo, hi, R, nn);
             });
             // 2. count merges and survivors per chunk
             merges.assign(chunks + 1, 0);
@@ -253,18 +252,17 @@ private:
     /// order with a strict `<`, as argmin_except does. Scalar, each pair was computed twice, once
     /// per end, and the search was 40 % of a plain PLOC build (100k torus, 2 threads, perf).
     static void nearest(const Clusters& c, std::size_t lo, std::size_t hi, std::size_t R,
-                        detail::RawArray<std::uint32_t>& nn, std::vector<float>& d) {
+                        detail::RawArray<std::uint32_t>& nn) {
         const std::size_t m = c.size();
-        float win[2 * 64 + 1];  // one cluster's window (R ≤ 64 here, else the heap)
-        std::vector<float> win_heap(R > 64 ? 2 * R + 1 : 0);
-        float* const w = R > 64 ? win_heap.data() : win;
+        std::vector<float> w(2 * R + 1);  // one cluster's window
         const auto one = [&](std::size_t i) {
             const std::size_t b = i >= R ? i - R : 0, e = std::min(m, i + R + 1);
             window_areas(c.box(i), c.lx.data() + b, c.ly.data() + b, c.lz.data() + b, c.hx.data() + b,
-                         c.hy.data() + b, c.hz.data() + b, e - b, w);
-            nn[i] = static_cast<std::uint32_t>(b + argmin_except(w, e - b, i - b));
+                         c.hy.data() + b, c.hz.data() + b, e - b, w.data());
+            nn[i] = static_cast<std::uint32_t>(b + argmin_except(w.data(), e - b, i - b));
         };
-        // clusters [vlo, vhi) have whole windows
+        // clusters [vlo, vhi) have whole windows; a window over 64 keeps the scalar path (the
+        // rows below take R floats per cluster)
         constexpr std::size_t kLanes = 4;
         const std::size_t vlo = std::max(lo, R), vhi = std::min(hi, m > R ? m - R : 0);
         if (R > 64 || vhi < vlo + 2 * kLanes) {
@@ -275,7 +273,7 @@ private:
         typedef float vf __attribute__((vector_size(16)));
         typedef std::int32_t vi __attribute__((vector_size(16)));
         const std::size_t base = vlo - R, len = vhi - base;  // pairs (p, p + k), p in [base, vhi)
-        d.resize(R * len);
+        std::vector<float> d(R * len);
         const float* const rows_lo[3] = {c.lx.data(), c.ly.data(), c.lz.data()};
         const float* const rows_hi[3] = {c.hx.data(), c.hy.data(), c.hz.data()};
         for (std::size_t k = 1; k <= R; ++k) {
